@@ -1,0 +1,118 @@
+"""ROS-standard messages (from the ``rosbags`` type store), CDR and numpy conversions.
+
+Import message classes by short name::
+
+    from visnav.msgs import Image, CameraInfo, PointCloud2
+
+Conversions in the manner of cv_bridge and sensor_msgs_py live in
+:mod:`visnav.msgs.image`, :mod:`visnav.msgs.pointcloud` and :mod:`visnav.msgs.time`.
+"""
+
+from __future__ import annotations
+
+from visnav.msgs.errors import MessageError, UnknownMessageTypeError
+from visnav.msgs.serde import (
+    deserialize,
+    get_message_class,
+    message_definition,
+    msg_type_name,
+    serialize,
+    typestore,
+)
+from visnav.msgs.time import (
+    duration_to_ns,
+    ns_to_duration,
+    ns_to_sec,
+    ns_to_time,
+    sec_to_ns,
+    time_to_ns,
+)
+from visnav.msgs.types import (
+    CameraInfo,
+    Clock,
+    ColorRGBA,
+    CompressedImage,
+    Duration,
+    Header,
+    Image,
+    Imu,
+    JointState,
+    LaserScan,
+    MapMetaData,
+    Marker,
+    MarkerArray,
+    OccupancyGrid,
+    Odometry,
+    Path,
+    Point,
+    Point32,
+    PointCloud2,
+    PointField,
+    Pose,
+    PoseStamped,
+    PoseWithCovariance,
+    PoseWithCovarianceStamped,
+    Quaternion,
+    RegionOfInterest,
+    String,
+    TFMessage,
+    Time,
+    Transform,
+    TransformStamped,
+    Twist,
+    TwistStamped,
+    TwistWithCovariance,
+    Vector3,
+)
+
+__all__ = [
+    "MessageError",
+    "UnknownMessageTypeError",
+    "deserialize",
+    "get_message_class",
+    "message_definition",
+    "msg_type_name",
+    "serialize",
+    "typestore",
+    "duration_to_ns",
+    "ns_to_duration",
+    "ns_to_sec",
+    "ns_to_time",
+    "sec_to_ns",
+    "time_to_ns",
+    "CameraInfo",
+    "Clock",
+    "ColorRGBA",
+    "CompressedImage",
+    "Duration",
+    "Header",
+    "Image",
+    "Imu",
+    "JointState",
+    "LaserScan",
+    "MapMetaData",
+    "Marker",
+    "MarkerArray",
+    "OccupancyGrid",
+    "Odometry",
+    "Path",
+    "Point",
+    "Point32",
+    "PointCloud2",
+    "PointField",
+    "Pose",
+    "PoseStamped",
+    "PoseWithCovariance",
+    "PoseWithCovarianceStamped",
+    "Quaternion",
+    "RegionOfInterest",
+    "String",
+    "TFMessage",
+    "Time",
+    "Transform",
+    "TransformStamped",
+    "Twist",
+    "TwistStamped",
+    "TwistWithCovariance",
+    "Vector3",
+]

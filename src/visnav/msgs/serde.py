@@ -1,0 +1,147 @@
+"""CDR (de)serialization and message type lookup through the ``rosbags`` type store.
+
+Type names are ROS 2 style (``sensor_msgs/msg/Image``). :func:`get_message_class`
+also accepts the ROS 1 form ``sensor_msgs/Image``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+from typing import Any
+
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+
+from visnav.msgs.errors import MessageError, UnknownMessageTypeError
+
+__all__ = [
+    "deserialize",
+    "get_message_class",
+    "message_definition",
+    "msg_type_name",
+    "serialize",
+    "typestore",
+]
+
+STORE = Stores.ROS2_HUMBLE
+
+
+@functools.cache
+def typestore() -> Typestore:
+    """Return the ROS 2 Humble type store visnav uses (created once, then shared read-only).
+
+    Returns:
+        The ``rosbags`` type store. Do not register types into it; make your own
+        with ``rosbags.typesys.get_typestore`` for that.
+    """
+    return get_typestore(STORE)
+
+
+def msg_type_name(msg_or_cls: Any) -> str:
+    """Return the ROS 2 type name of a message instance or class.
+
+    Args:
+        msg_or_cls: a message instance or class from :mod:`visnav.msgs`.
+
+    Returns:
+        The name, e.g. ``"sensor_msgs/msg/Image"``.
+
+    Raises:
+        MessageError: the object is not a ROS message.
+    """
+    name = getattr(msg_or_cls, "__msgtype__", None)
+    if not isinstance(name, str):
+        msg = (
+            f"{type(msg_or_cls).__name__!s} is not a ROS message (it has no __msgtype__); "
+            "expected a class or instance from visnav.msgs"
+        )
+        raise MessageError(msg)
+    return name
+
+
+def get_message_class(type_name: str) -> type[Any]:
+    """Look up a message class by type name.
+
+    Args:
+        type_name: ``pkg/msg/Name`` or the ROS 1 spelling ``pkg/Name``.
+
+    Returns:
+        The message dataclass.
+
+    Raises:
+        UnknownMessageTypeError: no such type; the message suggests close names.
+    """
+    types = typestore().types
+    name = type_name.strip()
+    parts = name.split("/")
+    if len(parts) == 2:  # ROS 1 form pkg/Name
+        name = f"{parts[0]}/msg/{parts[1]}"
+    cls = types.get(name)
+    if cls is None:
+        close = difflib.get_close_matches(name, list(types), n=3, cutoff=0.6)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        msg = (
+            f"unknown message type {type_name!r}: "
+            f"expected a name like 'sensor_msgs/msg/Image'{hint}"
+        )
+        raise UnknownMessageTypeError(msg)
+    return cls
+
+
+def serialize(msg: Any) -> bytes:
+    """Serialize a message to CDR (little endian), as ROS 2 puts it on the wire.
+
+    Args:
+        msg: a message instance.
+
+    Returns:
+        The CDR bytes, including the 4-byte encapsulation header.
+
+    Raises:
+        MessageError: the message is not a ROS message or a field has the wrong type.
+    """
+    name = msg_type_name(msg)
+    try:
+        return bytes(typestore().serialize_cdr(msg, name))
+    except (TypeError, ValueError, AttributeError, KeyError, OverflowError) as exc:
+        text = f"cannot serialize {name}: {exc}; check the field types against the definition"
+        raise MessageError(text) from exc
+
+
+def deserialize(data: bytes | memoryview, type_name: str) -> Any:
+    """Deserialize CDR bytes into a message.
+
+    Args:
+        data: CDR bytes with the encapsulation header.
+        type_name: ROS 2 type name of the message.
+
+    Returns:
+        The message instance (array fields are numpy views on ``data`` where possible).
+
+    Raises:
+        MessageError: the bytes do not decode as ``type_name``.
+    """
+    get_message_class(type_name)
+    try:
+        return typestore().deserialize_cdr(data, type_name)
+    except (ValueError, IndexError, KeyError, TypeError, AssertionError) as exc:
+        text = (
+            f"cannot deserialize {len(data)} bytes as {type_name}: {exc}; "
+            "expected CDR of that type (is the topic's type right?)"
+        )
+        raise MessageError(text) from exc
+
+
+def message_definition(type_name: str) -> str:
+    """Return the ROS 2 ``.msg`` text of a type with its dependencies (as bags store it).
+
+    Args:
+        type_name: ROS 2 type name.
+
+    Returns:
+        The concatenated definition (``rosbags``' ``generate_msgdef`` format).
+    """
+    get_message_class(type_name)
+    text, _md5 = typestore().generate_msgdef(type_name, ros_version=2)
+    return text
