@@ -1,0 +1,88 @@
+"""Entry point of the ``visnav`` command: argument parsing and the one error boundary.
+
+Verb modules are imported lazily so that ``visnav --help`` stays fast. Errors
+that visnav raises on purpose print as one line ``error: ...`` (exit 1); with
+``--debug`` the traceback is shown too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+import traceback
+from collections.abc import Sequence
+
+__all__ = ["build_parser", "main"]
+
+# verb -> (module, help)
+VERBS: dict[str, tuple[str, str]] = {
+    "topic": ("visnav.cli.topic", "inspect and publish topics (ros2 topic)"),
+    "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
+    "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the full argument parser (verb modules add their own sub-parsers)."""
+    parser = argparse.ArgumentParser(
+        prog="visnav",
+        description="visnav: ROS-style robot perception and navigation tools, no ROS install.",
+    )
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument(
+        "--domain", default=None, help="graph domain (default: $VISNAV_DOMAIN or 0)"
+    )
+    sub = parser.add_subparsers(dest="verb", metavar="VERB")
+    sub.required = True
+    for verb, (module, help_text) in VERBS.items():
+        p = sub.add_parser(verb, help=help_text, description=help_text)
+        importlib.import_module(module).add_arguments(p)
+    return parser
+
+
+def _verb_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
+    """Build a parser that only imports the verb being run (fast startup)."""
+    verb = next((a for a in argv if not a.startswith("-")), None)
+    if verb not in VERBS:
+        return build_parser()
+    parser = argparse.ArgumentParser(prog="visnav")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--domain", default=None, help="graph domain")
+    sub = parser.add_subparsers(dest="verb", metavar="VERB")
+    sub.required = True
+    module, help_text = VERBS[verb]
+    p = sub.add_parser(verb, help=help_text, description=help_text)
+    importlib.import_module(module).add_arguments(p)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``visnav`` command; return the exit code."""
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    parser = _verb_parser(args_list)
+    args = parser.parse_args(args_list)
+    logging.basicConfig(
+        level=logging.DEBUG if args.debug else logging.INFO,
+        format="[%(levelname)s] %(message)s",
+        stream=sys.stderr,
+    )
+    from visnav.errors import VisnavError
+
+    try:
+        code: int = args.func(args)
+    except VisnavError as exc:
+        if args.debug:
+            traceback.print_exc()
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        return 0
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,69 @@
+"""The graph: names, QoS, nodes, topics, timers, parameters, clocks and the executor.
+
+rclpy-shaped API; one :class:`Context` per graph participant, Zenoh between
+processes (see :mod:`visnav.graph.transport`).
+"""
+
+from __future__ import annotations
+
+from visnav.graph.clock import Clock, ClockType, TimePoint
+from visnav.graph.context import Context
+from visnav.graph.errors import (
+    GraphError,
+    ParameterAlreadyDeclaredError,
+    ParameterError,
+    ParameterNotDeclaredError,
+    TopicTypeConflictError,
+    TransportError,
+)
+from visnav.graph.graph_cache import EndpointInfo, GraphCache, NodeInfo
+from visnav.graph.names import InvalidNameError
+from visnav.graph.node import Node, NodeLogger, Publisher, Subscription, Timer
+from visnav.graph.parameters import Parameter, ParameterType, SetParametersResult
+from visnav.graph.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    check_qos_compatibility,
+    qos_profile_parameters,
+    qos_profile_sensor_data,
+    qos_profile_services_default,
+    qos_profile_system_default,
+    qos_profile_tf_static,
+)
+
+__all__ = [
+    "Clock",
+    "ClockType",
+    "Context",
+    "DurabilityPolicy",
+    "EndpointInfo",
+    "GraphCache",
+    "GraphError",
+    "HistoryPolicy",
+    "InvalidNameError",
+    "Node",
+    "NodeInfo",
+    "NodeLogger",
+    "Parameter",
+    "ParameterAlreadyDeclaredError",
+    "ParameterError",
+    "ParameterNotDeclaredError",
+    "ParameterType",
+    "Publisher",
+    "QoSProfile",
+    "ReliabilityPolicy",
+    "SetParametersResult",
+    "Subscription",
+    "TimePoint",
+    "Timer",
+    "TopicTypeConflictError",
+    "TransportError",
+    "check_qos_compatibility",
+    "qos_profile_parameters",
+    "qos_profile_sensor_data",
+    "qos_profile_services_default",
+    "qos_profile_system_default",
+    "qos_profile_tf_static",
+]

@@ -1,0 +1,355 @@
+"""The graph context: in-process topics, the deterministic executor and the transport.
+
+A :class:`Context` is the unit of "one graph participant": every node created
+with it shares in-process (zero-copy) delivery and one Zenoh session that
+connects it to the other processes of the same domain. Nothing is global: make
+a context explicitly, or let a :class:`~visnav.graph.Node` make a private one.
+
+Executor semantics (deterministic): callbacks run in the thread that calls
+:meth:`Context.spin_once`. Each call runs at most one callback: first the due
+timer with the earliest deadline (ties: creation order), otherwise the oldest
+pending message (publication order in this process; remote messages in arrival
+order). The same inputs in one process therefore give the same callback order.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import os
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+from visnav.graph.errors import GraphError, TopicTypeConflictError
+from visnav.graph.graph_cache import GraphCache
+from visnav.graph.keys import liveliness_key_pattern
+from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
+
+if TYPE_CHECKING:
+    from visnav.graph.node import Node, Publisher, Subscription, Timer
+
+__all__ = ["ENV_TRANSPORT", "Context"]
+
+ENV_TRANSPORT = "VISNAV_TRANSPORT"
+_TRANSPORTS = ("zenoh", "local")
+
+
+class _LocalTopic:
+    __slots__ = ("msg_type", "name", "publishers", "subscriptions")
+
+    def __init__(self, name: str, msg_type: type[Any]) -> None:
+        self.name = name
+        self.msg_type = msg_type
+        self.publishers: list[Publisher[Any]] = []
+        self.subscriptions: list[Subscription[Any]] = []
+
+
+class Context:
+    """One participant in a visnav graph.
+
+    Args:
+        domain: graph domain id; default ``VISNAV_DOMAIN`` or 0.
+        transport: ``"zenoh"`` (default; talks to other processes) or ``"local"``
+            (this process only); default ``VISNAV_TRANSPORT`` or ``"zenoh"``.
+        env: environment to read (default ``os.environ``); for tests.
+    """
+
+    def __init__(
+        self,
+        domain: str | int | None = None,
+        *,
+        transport: str | None = None,
+        env: Mapping[str, str] | None = None,
+    ) -> None:
+        env = os.environ if env is None else env
+        self.domain = resolve_domain(domain, env)
+        kind = transport or env.get(ENV_TRANSPORT, "zenoh")
+        if kind not in _TRANSPORTS:
+            msg = f"transport is {kind!r}: expected one of {', '.join(_TRANSPORTS)}"
+            raise GraphError(msg)
+        self.transport_kind = kind
+        self._config = TransportConfig.from_env(self.domain, env)
+        self._zenoh: ZenohTransport | None = None
+        self._zenoh_lock = threading.Lock()
+        self._cond = threading.Condition(threading.RLock())
+        self._topics: dict[str, _LocalTopic] = {}
+        self._ready: deque[Subscription[Any]] = deque()
+        self._timers: list[Timer] = []
+        self._nodes: list[Node] = []
+        self._ids = itertools.count(1)
+        self._spinning = False
+        self._shutdown = False
+        self._watch: Any = None
+        self.graph = GraphCache()
+        self.graph.add_listener(self._on_graph_change)
+
+    # ------------------------------------------------------------------ lifecycle
+    def __enter__(self) -> Context:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()
+
+    @property
+    def ok(self) -> bool:
+        """False after :meth:`shutdown`."""
+        return not self._shutdown
+
+    def shutdown(self) -> None:
+        """Destroy all nodes and close the transport (idempotent)."""
+        if self._shutdown:
+            return
+        for node in list(self._nodes):
+            node.destroy_node()
+        self._shutdown = True
+        with self._cond:
+            self._cond.notify_all()
+        if self._watch is not None:
+            with contextlib.suppress(Exception):
+                self._watch.undeclare()
+        if self._zenoh is not None:
+            self._zenoh.close()
+
+    def next_id(self) -> int:
+        """Return a new entity id, unique in this context."""
+        return next(self._ids)
+
+    @property
+    def zenoh(self) -> ZenohTransport | None:
+        """The Zenoh transport (opened on first use), or None for a local-only context."""
+        if self.transport_kind != "zenoh" or self._shutdown:
+            return None
+        with self._zenoh_lock:
+            if self._zenoh is None:
+                self._zenoh = ZenohTransport(self._config)
+                self._watch = self._zenoh.watch_liveliness(
+                    liveliness_key_pattern(self.domain), self.graph.put, self.graph.delete
+                )
+            return self._zenoh
+
+    @property
+    def zid(self) -> str:
+        """The Zenoh id of this context (``"0"`` for a local-only context)."""
+        z = self.zenoh
+        return z.zid if z is not None else "0"
+
+    # ------------------------------------------------------------------ registry
+    def register_node(self, node: Node) -> None:
+        """Called by :class:`Node`: add a node."""
+        self._check_ok()
+        self._nodes.append(node)
+
+    def unregister_node(self, node: Node) -> None:
+        """Called by :class:`Node`: remove a node."""
+        with contextlib.suppress(ValueError):
+            self._nodes.remove(node)
+
+    @property
+    def nodes(self) -> list[Node]:
+        """The nodes of this context."""
+        return list(self._nodes)
+
+    def _check_ok(self) -> None:
+        if self._shutdown:
+            msg = "the context is shut down; create a new Context"
+            raise GraphError(msg)
+
+    def _topic(self, name: str, msg_type: type[Any], what: str) -> _LocalTopic:
+        topic = self._topics.get(name)
+        if topic is None:
+            topic = _LocalTopic(name, msg_type)
+            self._topics[name] = topic
+        elif topic.msg_type is not msg_type:
+            existing = getattr(topic.msg_type, "__msgtype__", topic.msg_type.__name__)
+            new = getattr(msg_type, "__msgtype__", msg_type.__name__)
+            msg = (
+                f"topic '{name}' already carries {existing} in this process; cannot create a "
+                f"{what} of {new} on it: use another topic name or the same type"
+            )
+            raise TopicTypeConflictError(msg)
+        return topic
+
+    def check_remote_type(self, name: str, type_name: str) -> None:
+        """Refuse ``type_name`` on a topic whose known remote publishers use another type."""
+        for e in self.graph.endpoints(name):
+            if e.kind == "publisher" and e.type_name and e.type_name != type_name:
+                msg = (
+                    f"topic '{name}' is already published as {e.type_name} by {e.node_fqn}; "
+                    f"cannot publish {type_name} on it: use another topic name or the same type"
+                )
+                raise TopicTypeConflictError(msg)
+
+    def add_publisher(self, pub: Publisher[Any]) -> None:
+        """Called by :class:`Node`: attach a publisher to its in-process topic."""
+        with self._cond:
+            self._check_ok()
+            topic = self._topic(pub.topic_name, pub.msg_type, "publisher")
+            topic.publishers.append(pub)
+            self._relink(topic)
+
+    def add_subscription(self, sub: Subscription[Any]) -> None:
+        """Called by :class:`Node`: attach a subscription; deliver transient-local history."""
+        with self._cond:
+            self._check_ok()
+            topic = self._topic(sub.topic_name, sub.msg_type, "subscription")
+            topic.subscriptions.append(sub)
+            self._relink(topic)
+            for pub in topic.publishers:
+                if sub in pub.targets and pub.history is not None and sub.wants_history:
+                    for msg in pub.history:
+                        sub.enqueue(msg)
+                        self._ready.append(sub)
+            self._cond.notify_all()
+
+    def remove_publisher(self, pub: Publisher[Any]) -> None:
+        """Called by :class:`Node`: detach a publisher."""
+        with self._cond:
+            topic = self._topics.get(pub.topic_name)
+            if topic is not None and pub in topic.publishers:
+                topic.publishers.remove(pub)
+                self._gc(topic)
+
+    def remove_subscription(self, sub: Subscription[Any]) -> None:
+        """Called by :class:`Node`: detach a subscription."""
+        with self._cond:
+            topic = self._topics.get(sub.topic_name)
+            if topic is not None and sub in topic.subscriptions:
+                topic.subscriptions.remove(sub)
+                self._relink(topic)
+                self._gc(topic)
+
+    def _gc(self, topic: _LocalTopic) -> None:
+        if not topic.publishers and not topic.subscriptions:
+            del self._topics[topic.name]
+
+    @staticmethod
+    def _relink(topic: _LocalTopic) -> None:
+        for pub in topic.publishers:
+            pub.link([s for s in topic.subscriptions if pub.compatible_with(s)])
+
+    def add_timer(self, timer: Timer) -> None:
+        """Called by :class:`Node`: schedule a timer."""
+        with self._cond:
+            self._timers.append(timer)
+            self._cond.notify_all()
+
+    def remove_timer(self, timer: Timer) -> None:
+        """Called by :class:`Node`: unschedule a timer."""
+        with self._cond, contextlib.suppress(ValueError):
+            self._timers.remove(timer)
+
+    # ------------------------------------------------------------------ delivery
+    def deliver_local(self, pub: Publisher[Any], msg: Any) -> None:
+        """Hand ``msg`` (same object, no copy) to the in-process subscriptions of ``pub``."""
+        with self._cond:
+            for sub in pub.targets:
+                sub.enqueue(msg)
+                self._ready.append(sub)
+            if pub.history is not None:
+                pub.history.append(msg)
+            self._cond.notify()
+
+    def deliver_remote(self, sub: Subscription[Any], msg: Any) -> None:
+        """Hand a message that arrived from another process to ``sub`` (any thread)."""
+        with self._cond:
+            sub.enqueue(msg)
+            self._ready.append(sub)
+            self._cond.notify()
+
+    def wake(self) -> None:
+        """Wake a waiting :meth:`spin_once` (e.g. after a clock change)."""
+        with self._cond:
+            self._cond.notify_all()
+
+    def _on_graph_change(self) -> None:
+        self.wake()
+
+    # ------------------------------------------------------------------ executor
+    def _due_timer(self) -> Timer | None:
+        best: Timer | None = None
+        for t in self._timers:
+            if t.is_ready() and (
+                best is None or (t.next_call_ns, t.entity_id) < (best.next_call_ns, best.entity_id)
+            ):
+                best = t
+        return best
+
+    def _wall_wait_s(self) -> float | None:
+        waits = [w for t in self._timers if (w := t.wall_wait_s()) is not None]
+        return max(0.0, min(waits)) if waits else None
+
+    def _take(self) -> tuple[Callable[[], None] | None, float | None]:
+        timer = self._due_timer()
+        if timer is not None:
+            return timer.prepare_call(), None
+        while self._ready:
+            sub = self._ready.popleft()
+            call = sub.take_call()
+            if call is not None:
+                return call, None
+        return None, self._wall_wait_s()
+
+    def spin_once(self, timeout_s: float | None = None) -> bool:
+        """Run at most one ready callback, waiting up to ``timeout_s`` for one.
+
+        Args:
+            timeout_s: ``None`` waits forever, ``0`` does not wait.
+
+        Returns:
+            True if a callback ran.
+        """
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self._cond:
+            if self._spinning:
+                msg = "spin_once called while this context is already spinning (from a callback?)"
+                raise GraphError(msg)
+            self._spinning = True
+        try:
+            while True:
+                with self._cond:
+                    if self._shutdown:
+                        return False
+                    call, wait = self._take()
+                    if call is None:
+                        remaining = None if deadline is None else deadline - time.monotonic()
+                        if remaining is not None and remaining <= 0:
+                            return False
+                        waits = [w for w in (wait, remaining) if w is not None]
+                        self._cond.wait(min(waits) if waits else None)
+                        continue
+                call()
+                return True
+        finally:
+            with self._cond:
+                self._spinning = False
+
+    def spin_some(self, max_callbacks: int | None = None) -> int:
+        """Run the callbacks that are ready now, without waiting; return how many ran."""
+        count = 0
+        while (max_callbacks is None or count < max_callbacks) and self.spin_once(0.0):
+            count += 1
+        return count
+
+    def spin_until(self, predicate: Callable[[], bool], timeout_s: float | None = None) -> bool:
+        """Spin until ``predicate()`` is true or ``timeout_s`` passes; return the predicate."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while not predicate():
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                return predicate()
+            self.spin_once(min(remaining, 0.05) if remaining is not None else 0.05)
+            if self._shutdown:
+                return predicate()
+        return True
+
+    def spin(self, duration_s: float | None = None) -> None:
+        """Spin until shutdown (or for ``duration_s`` seconds)."""
+        end = None if duration_s is None else time.monotonic() + duration_s
+        while not self._shutdown:
+            remaining = None if end is None else end - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                return
+            self.spin_once(min(remaining, 0.1) if remaining is not None else 0.1)

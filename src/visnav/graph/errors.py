@@ -1,0 +1,38 @@
+"""Errors of :mod:`visnav.graph`."""
+
+from __future__ import annotations
+
+from visnav.errors import VisnavError
+
+__all__ = [
+    "GraphError",
+    "ParameterAlreadyDeclaredError",
+    "ParameterError",
+    "ParameterNotDeclaredError",
+    "TopicTypeConflictError",
+    "TransportError",
+]
+
+
+class GraphError(VisnavError):
+    """A node, topic or executor operation failed."""
+
+
+class TopicTypeConflictError(GraphError, TypeError):
+    """A topic is used with a second message type."""
+
+
+class TransportError(GraphError):
+    """The inter-process transport (Zenoh) could not be configured or opened."""
+
+
+class ParameterError(GraphError, ValueError):
+    """A parameter value or declaration is invalid."""
+
+
+class ParameterNotDeclaredError(ParameterError, LookupError):
+    """A parameter was read or set before being declared."""
+
+
+class ParameterAlreadyDeclaredError(ParameterError):
+    """A parameter was declared twice."""

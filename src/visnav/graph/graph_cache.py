@@ -1,0 +1,135 @@
+"""What the graph looks like: nodes, publishers and subscriptions of every process.
+
+Entities are known by their liveliness token keys (rmw_zenoh layout, see
+:mod:`visnav.graph.keys`). Local entities are added directly; remote ones arrive
+through the transport's liveliness subscription. Both paths use the same key,
+so an entity seen both ways is counted once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from collections.abc import Callable
+
+from visnav.graph.keys import LivelinessToken, parse_liveliness_token
+
+__all__ = ["EndpointInfo", "GraphCache", "NodeInfo"]
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeInfo:
+    """A node in the graph."""
+
+    name: str
+    namespace: str
+    zid: str
+    node_id: int
+
+    @property
+    def fully_qualified_name(self) -> str:
+        """``/ns/name``."""
+        return f"{self.namespace.rstrip('/')}/{self.name}"
+
+
+@dataclasses.dataclass(frozen=True)
+class EndpointInfo:
+    """A publisher or subscription in the graph (rclpy's TopicEndpointInfo)."""
+
+    kind: str  # "publisher" or "subscription"
+    topic: str
+    type_name: str
+    node_name: str
+    node_namespace: str
+    reliability: str
+    durability: str
+    depth: int
+    zid: str
+    node_id: int
+    entity_id: int
+
+    @property
+    def node_fqn(self) -> str:
+        """The owning node's fully qualified name."""
+        return f"{self.node_namespace.rstrip('/')}/{self.node_name}"
+
+
+class GraphCache:
+    """Thread-safe view of the graph built from liveliness tokens."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._tokens: dict[str, LivelinessToken] = {}
+        self._listeners: list[Callable[[], None]] = []
+        self.version = 0
+
+    def add_listener(self, callback: Callable[[], None]) -> None:
+        """Call ``callback`` (from any thread) whenever the graph changes."""
+        self._listeners.append(callback)
+
+    def _changed(self) -> None:
+        self.version += 1
+        for cb in list(self._listeners):
+            cb()
+
+    def put(self, key: str) -> None:
+        """Add a token key (ignored if it is not a visnav/rmw_zenoh token)."""
+        try:
+            token = parse_liveliness_token(key)
+        except ValueError:
+            return
+        with self._lock:
+            if key in self._tokens:
+                return
+            self._tokens[key] = token
+        self._changed()
+
+    def delete(self, key: str) -> None:
+        """Remove a token key."""
+        with self._lock:
+            if self._tokens.pop(key, None) is None:
+                return
+        self._changed()
+
+    def nodes(self) -> list[NodeInfo]:
+        """Return every node, sorted by fully qualified name."""
+        with self._lock:
+            toks = list(self._tokens.values())
+        seen = {
+            NodeInfo(t.node_name, t.namespace, t.zid, t.node_id) for t in toks if t.kind == "NN"
+        }
+        return sorted(seen, key=lambda n: (n.fully_qualified_name, n.zid, n.node_id))
+
+    def endpoints(self, topic: str | None = None) -> list[EndpointInfo]:
+        """Return publishers and subscriptions (optionally of one topic)."""
+        with self._lock:
+            toks = list(self._tokens.values())
+        out = []
+        for t in toks:
+            if t.kind not in ("MP", "MS") or t.topic is None:
+                continue
+            if topic is not None and t.topic != topic:
+                continue
+            out.append(
+                EndpointInfo(
+                    kind="publisher" if t.kind == "MP" else "subscription",
+                    topic=t.topic,
+                    type_name=t.type_name or "",
+                    node_name=t.node_name,
+                    node_namespace=t.namespace,
+                    reliability=t.reliability or "reliable",
+                    durability=t.durability or "volatile",
+                    depth=t.depth if t.depth is not None else 0,
+                    zid=t.zid,
+                    node_id=t.node_id,
+                    entity_id=t.entity_id,
+                )
+            )
+        return sorted(out, key=lambda e: (e.topic, e.kind, e.node_fqn, e.entity_id))
+
+    def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
+        """Return ``[(topic, [types])]`` sorted by topic (rclpy's get_topic_names_and_types)."""
+        types: dict[str, set[str]] = {}
+        for e in self.endpoints():
+            types.setdefault(e.topic, set()).add(e.type_name)
+        return [(t, sorted(v)) for t, v in sorted(types.items())]

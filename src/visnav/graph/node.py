@@ -1,0 +1,608 @@
+"""rclpy-shaped nodes: publishers, subscriptions, timers, parameters, clock and logger.
+
+Example::
+
+    from visnav.graph import Context, Node
+    from visnav.msgs import String
+
+    with Context() as ctx:
+        node = Node("talker", namespace="/demo", context=ctx)
+        pub = node.create_publisher(String, "chatter", 10)
+        node.create_timer(0.5, lambda: pub.publish(String(data="hi")))
+        ctx.spin(duration_s=2.0)
+
+Where visnav differs from rclpy: ``Node(..., context=None)`` makes a private
+context owned by the node (rclpy uses a process-global default context; visnav
+keeps no global state). Nodes that should share zero-copy in-process delivery and
+one executor must be given the same :class:`~visnav.graph.Context`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, Generic, TypeVar
+
+from visnav.graph.clock import Clock, ClockType
+from visnav.graph.context import Context
+from visnav.graph.errors import GraphError, TopicTypeConflictError
+from visnav.graph.graph_cache import EndpointInfo
+from visnav.graph.keys import liveliness_token, topic_key
+from visnav.graph.names import (
+    RemapRule,
+    parse_remap_rule,
+    resolve_node_name_and_namespace,
+    resolve_topic_name,
+)
+from visnav.graph.parameters import Parameter, ParameterStore, SetParametersResult
+from visnav.graph.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    check_qos_compatibility,
+    to_qos,
+)
+from visnav.msgs.serde import deserialize, msg_type_name, serialize, typestore
+from visnav.msgs.time import time_to_ns
+from visnav.msgs.types import Clock as ClockMsg
+
+__all__ = ["Node", "NodeLogger", "Publisher", "Subscription", "Timer"]
+
+MsgT = TypeVar("MsgT")
+
+_CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+_type_hashes: dict[str, str] = {}
+
+
+def _type_hash(type_name: str) -> str:
+    h = _type_hashes.get(type_name)
+    if h is None:
+        h = typestore().hash_rihs01(type_name)
+        _type_hashes[type_name] = h
+    return h
+
+
+class NodeLogger:
+    """A node's logger (rclpy's RcutilsLogger surface over :mod:`logging`)."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self._log = logging.getLogger(f"visnav.node.{name.strip('/').replace('/', '.')}")
+
+    def debug(self, message: str) -> None:
+        """Log at debug level."""
+        self._log.debug("[%s] %s", self.name, message)
+
+    def info(self, message: str) -> None:
+        """Log at info level."""
+        self._log.info("[%s] %s", self.name, message)
+
+    def warning(self, message: str) -> None:
+        """Log at warning level."""
+        self._log.warning("[%s] %s", self.name, message)
+
+    warn = warning
+
+    def error(self, message: str) -> None:
+        """Log at error level."""
+        self._log.error("[%s] %s", self.name, message)
+
+    def fatal(self, message: str) -> None:
+        """Log at critical level."""
+        self._log.critical("[%s] %s", self.name, message)
+
+
+class Publisher(Generic[MsgT]):
+    """Publishes one message type on one topic; made by :meth:`Node.create_publisher`."""
+
+    def __init__(self, node: Node, msg_type: type[MsgT], topic_name: str, qos: QoSProfile) -> None:
+        self.node = node
+        self.msg_type = msg_type
+        self.type_name = msg_type_name(msg_type)
+        self.topic_name = topic_name
+        self.qos = qos
+        self.entity_id = node.context.next_id()
+        self.targets: list[Subscription[Any]] = []
+        transient = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
+        self.history: deque[Any] | None = deque(maxlen=qos.queue_limit) if transient else None
+        self._zpub: Any = None
+
+    def link(self, targets: list[Subscription[Any]]) -> None:
+        """Set the in-process subscriptions this publisher delivers to (context's job)."""
+        self.targets = targets
+
+    def compatible_with(self, sub: Subscription[Any]) -> bool:
+        """Whether this publisher's QoS can feed ``sub``."""
+        return check_qos_compatibility(self.qos, sub.qos)[0]
+
+    def publish(self, msg: MsgT) -> None:
+        """Publish a message: in-process subscriptions get the same object (zero copy).
+
+        Raises:
+            TopicTypeConflictError: ``msg`` is not of the publisher's type.
+        """
+        if type(msg) is not self.msg_type:
+            got = getattr(msg, "__msgtype__", type(msg).__name__)
+            text = (
+                f"publisher on '{self.topic_name}' carries {self.type_name} but was given {got}; "
+                f"publish a {self.type_name} or create another publisher"
+            )
+            raise TopicTypeConflictError(text)
+        self.node.context.deliver_local(self, msg)
+        zpub = self._zpub
+        if zpub is not None and zpub.has_subscribers:
+            zpub.put(serialize(msg))
+
+    def get_subscription_count(self) -> int:
+        """Number of matched subscriptions in the graph (all processes)."""
+        return self.node.count_subscribers(self.topic_name)
+
+    def destroy(self) -> None:
+        """Remove the publisher."""
+        self.node.destroy_publisher(self)
+
+
+class Subscription(Generic[MsgT]):
+    """Receives one message type on one topic; made by :meth:`Node.create_subscription`."""
+
+    def __init__(
+        self,
+        node: Node,
+        msg_type: type[MsgT],
+        topic_name: str,
+        callback: Callable[[MsgT], Any],
+        qos: QoSProfile,
+    ) -> None:
+        self.node = node
+        self.msg_type = msg_type
+        self.type_name = msg_type_name(msg_type)
+        self.topic_name = topic_name
+        self.callback = callback
+        self.qos = qos
+        self.entity_id = node.context.next_id()
+        self.queue: deque[MsgT] = deque(maxlen=qos.queue_limit)
+        self.wants_history = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
+        self._zsub: Any = None
+
+    def enqueue(self, msg: MsgT) -> None:
+        """Queue a message (keep-last drops the oldest)."""
+        self.queue.append(msg)
+
+    def take_call(self) -> Callable[[], None] | None:
+        """Pop the oldest queued message as a ready-to-run callback, or None."""
+        if not self.queue:
+            return None
+        msg = self.queue.popleft()
+        cb = self.callback
+        return lambda: cb(msg)
+
+    def on_remote(self, payload: bytes) -> None:
+        """Deserialize a remote sample and queue it (runs on a transport thread)."""
+        try:
+            msg = deserialize(payload, self.type_name)
+        except GraphError as exc:  # pragma: no cover - MessageError is not a GraphError
+            self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
+            return
+        except ValueError as exc:
+            self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
+            return
+        self.node.context.deliver_remote(self, msg)
+
+    def destroy(self) -> None:
+        """Remove the subscription."""
+        self.node.destroy_subscription(self)
+
+
+class Timer:
+    """Calls a callback every period of its clock (sim time when ``use_sim_time``).
+
+    Missed periods are skipped, as rcl does: after a stall or a clock jump the
+    timer fires once and keeps its phase.
+    """
+
+    def __init__(
+        self, node: Node, period_ns: int, callback: Callable[[], Any], clock: Clock
+    ) -> None:
+        if period_ns <= 0:
+            msg = f"timer period is {period_ns} ns: expected a positive period"
+            raise GraphError(msg)
+        self.node = node
+        self.timer_period_ns = period_ns
+        self.callback = callback
+        self.clock = clock
+        self.entity_id = node.context.next_id()
+        self.next_call_ns = clock.now_ns() + period_ns
+        self._canceled = False
+
+    def is_ready(self) -> bool:
+        """True when the timer is due."""
+        if self._canceled:
+            return False
+        now = self.clock.now_ns()
+        if now < self.next_call_ns - self.timer_period_ns:  # time jumped backwards
+            self.next_call_ns = now + self.timer_period_ns
+        return now >= self.next_call_ns
+
+    def wall_wait_s(self) -> float | None:
+        """Seconds until due for wall-clock timers; None for sim-time or canceled timers."""
+        if self._canceled or self.clock.ros_time_is_active:
+            return None
+        return (self.next_call_ns - self.clock.now_ns()) / 1e9
+
+    def prepare_call(self) -> Callable[[], None]:
+        """Advance the deadline and return the callback to run."""
+        now = self.clock.now_ns()
+        nxt = self.next_call_ns + self.timer_period_ns
+        if nxt <= now:
+            missed = (now - nxt) // self.timer_period_ns + 1
+            nxt += missed * self.timer_period_ns
+        self.next_call_ns = nxt
+        return self.callback
+
+    def time_until_next_call(self) -> int:
+        """Nanoseconds until the next call (negative when overdue)."""
+        return self.next_call_ns - self.clock.now_ns()
+
+    def cancel(self) -> None:
+        """Stop the timer."""
+        self._canceled = True
+
+    def is_canceled(self) -> bool:
+        """Whether the timer is canceled."""
+        return self._canceled
+
+    def reset(self) -> None:
+        """Restart: next call one period from now."""
+        self._canceled = False
+        self.next_call_ns = self.clock.now_ns() + self.timer_period_ns
+        self.node.context.wake()
+
+    def destroy(self) -> None:
+        """Remove the timer."""
+        self.node.destroy_timer(self)
+
+
+def _rules(remappings: Mapping[str, str] | Sequence[str] | None) -> list[RemapRule]:
+    if remappings is None:
+        return []
+    if isinstance(remappings, Mapping):
+        return [parse_remap_rule(f"{k}:={v}") for k, v in remappings.items()]
+    return [parse_remap_rule(r) for r in remappings]
+
+
+class Node:
+    """A ROS-style node.
+
+    Args:
+        node_name: the node's name (no slashes).
+        context: the graph context; None makes a private one owned by this node.
+        namespace: the node's namespace (default ``/``).
+        parameter_overrides: initial parameter values (a mapping or rclpy-style list of
+            :class:`Parameter`).
+        remappings: rules ``{"from": "to"}`` or ``["from:=to", "__ns:=/x"]``.
+        use_sim_time: shortcut for the ``use_sim_time`` parameter override.
+    """
+
+    def __init__(
+        self,
+        node_name: str,
+        *,
+        context: Context | None = None,
+        namespace: str | None = None,
+        parameter_overrides: Mapping[str, Any] | Sequence[Parameter] | None = None,
+        remappings: Mapping[str, str] | Sequence[str] | None = None,
+        use_sim_time: bool | None = None,
+    ) -> None:
+        self._owns_context = context is None
+        self.context = context if context is not None else Context()
+        self._rules = _rules(remappings)
+        name, ns = resolve_node_name_and_namespace(node_name, namespace or "/", self._rules)
+        self._name = name
+        self._namespace = ns
+        self.node_id = self.context.next_id()
+        self._publishers: list[Publisher[Any]] = []
+        self._subscriptions: list[Subscription[Any]] = []
+        self._timers: list[Timer] = []
+        self._tokens: dict[int, tuple[str, Any]] = {}
+        self._destroyed = False
+        self._logger = NodeLogger(self.get_fully_qualified_name())
+        self._clock = Clock(ClockType.ROS_TIME)
+        overrides: dict[str, Any]
+        if parameter_overrides is None:
+            overrides = {}
+        elif isinstance(parameter_overrides, Mapping):
+            overrides = dict(parameter_overrides)
+        else:
+            overrides = {p.name: p.value for p in parameter_overrides}
+        if use_sim_time is not None:
+            overrides["use_sim_time"] = use_sim_time
+        self._params = ParameterStore(self.get_fully_qualified_name(), overrides)
+        self.context.register_node(self)
+        self._announce(self.node_id, "NN")
+        self._clock_sub: Subscription[Any] | None = None
+        self._params.declare("use_sim_time", value=False)
+        self._params.add_on_set_callback(self._on_params)
+        self._apply_sim_time(bool(self._params.get("use_sim_time").value))
+
+    # ------------------------------------------------------------------ identity
+    def get_name(self) -> str:
+        """The node's name."""
+        return self._name
+
+    def get_namespace(self) -> str:
+        """The node's namespace."""
+        return self._namespace
+
+    def get_fully_qualified_name(self) -> str:
+        """``/namespace/name``."""
+        return f"{self._namespace.rstrip('/')}/{self._name}"
+
+    def get_logger(self) -> NodeLogger:
+        """The node's logger."""
+        return self._logger
+
+    def get_clock(self) -> Clock:
+        """The node's ROS clock (follows ``/clock`` when ``use_sim_time`` is true)."""
+        return self._clock
+
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str:
+        """Expand (and, unless ``only_expand``, remap) a topic name for this node."""
+        rules = [] if only_expand else self._rules
+        return resolve_topic_name(topic, self._name, self._namespace, rules)
+
+    # ------------------------------------------------------------------ graph tokens
+    def _announce(
+        self,
+        entity_id: int,
+        kind: str,
+        topic: str | None = None,
+        type_name: str | None = None,
+        qos: QoSProfile | None = None,
+    ) -> None:
+        key = liveliness_token(
+            self.context.domain,
+            self.context.zid,
+            self.node_id,
+            entity_id,
+            kind,
+            self._namespace,
+            self._name,
+            topic=topic,
+            type_name=type_name,
+            type_hash=_type_hash(type_name) if type_name else None,
+            qos=(qos.reliability.value, qos.durability.value, qos.depth) if qos else None,
+        )
+        z = self.context.zenoh
+        handle = z.token(key) if z is not None else None
+        self._tokens[entity_id] = (key, handle)
+        self.context.graph.put(key)
+
+    def _retract(self, entity_id: int) -> None:
+        key, handle = self._tokens.pop(entity_id, ("", None))
+        if handle is not None:
+            with contextlib.suppress(Exception):
+                handle.undeclare()
+        if key:
+            self.context.graph.delete(key)
+
+    # ------------------------------------------------------------------ entities
+    def create_publisher(
+        self, msg_type: type[MsgT], topic: str, qos_profile: QoSProfile | int
+    ) -> Publisher[MsgT]:
+        """Create a publisher (rclpy signature).
+
+        Raises:
+            TopicTypeConflictError: the topic already carries another type.
+            InvalidNameError: the topic name is invalid.
+        """
+        self._check_alive()
+        qos = to_qos(qos_profile)
+        name = self.resolve_topic_name(topic)
+        pub = Publisher(self, msg_type, name, qos)
+        self.context.check_remote_type(name, pub.type_name)
+        self.context.add_publisher(pub)
+        self._publishers.append(pub)
+        z = self.context.zenoh
+        if z is not None:
+            key = topic_key(self.context.domain, name, pub.type_name, _type_hash(pub.type_name))
+            cache = qos.depth if qos.durability is DurabilityPolicy.TRANSIENT_LOCAL else None
+            pub._zpub = z.publisher(key, cache_depth=cache)
+        self._announce(pub.entity_id, "MP", name, pub.type_name, qos)
+        return pub
+
+    def create_subscription(
+        self,
+        msg_type: type[MsgT],
+        topic: str,
+        callback: Callable[[MsgT], Any],
+        qos_profile: QoSProfile | int,
+    ) -> Subscription[MsgT]:
+        """Create a subscription (rclpy signature); ``callback(msg)`` runs in the executor.
+
+        Raises:
+            TopicTypeConflictError: the topic carries another type in this process.
+            InvalidNameError: the topic name is invalid.
+        """
+        self._check_alive()
+        qos = to_qos(qos_profile)
+        name = self.resolve_topic_name(topic)
+        sub = Subscription(self, msg_type, name, callback, qos)
+        self.context.add_subscription(sub)
+        self._subscriptions.append(sub)
+        z = self.context.zenoh
+        if z is not None:
+            key = topic_key(self.context.domain, name, sub.type_name, _type_hash(sub.type_name))
+            sub._zsub = z.subscriber(key, sub.on_remote, history=sub.wants_history)
+        self._announce(sub.entity_id, "MS", name, sub.type_name, qos)
+        return sub
+
+    def create_timer(
+        self,
+        timer_period_sec: float,
+        callback: Callable[[], Any],
+        *,
+        clock: Clock | None = None,
+    ) -> Timer:
+        """Create a timer firing every ``timer_period_sec`` of the node's clock (or ``clock``)."""
+        self._check_alive()
+        timer = Timer(self, round(timer_period_sec * 1e9), callback, clock or self._clock)
+        self.context.add_timer(timer)
+        self._timers.append(timer)
+        return timer
+
+    def destroy_publisher(self, pub: Publisher[Any]) -> None:
+        """Remove a publisher."""
+        if pub in self._publishers:
+            self._publishers.remove(pub)
+            self.context.remove_publisher(pub)
+            if pub._zpub is not None:
+                pub._zpub.close()
+            self._retract(pub.entity_id)
+
+    def destroy_subscription(self, sub: Subscription[Any]) -> None:
+        """Remove a subscription."""
+        if sub in self._subscriptions:
+            self._subscriptions.remove(sub)
+            self.context.remove_subscription(sub)
+            if sub._zsub is not None:
+                with contextlib.suppress(Exception):
+                    sub._zsub.undeclare()
+            self._retract(sub.entity_id)
+
+    def destroy_timer(self, timer: Timer) -> None:
+        """Remove a timer."""
+        if timer in self._timers:
+            timer.cancel()
+            self._timers.remove(timer)
+            self.context.remove_timer(timer)
+
+    def destroy_node(self) -> None:
+        """Remove the node and all its entities (closes a private context)."""
+        if self._destroyed:
+            return
+        self._destroyed = True
+        for p in list(self._publishers):
+            self.destroy_publisher(p)
+        for s in list(self._subscriptions):
+            self.destroy_subscription(s)
+        for t in list(self._timers):
+            self.destroy_timer(t)
+        self._retract(self.node_id)
+        self.context.unregister_node(self)
+        if self._owns_context:
+            self.context.shutdown()
+
+    def _check_alive(self) -> None:
+        if self._destroyed:
+            msg = f"node {self.get_fully_qualified_name()} was destroyed"
+            raise GraphError(msg)
+
+    @property
+    def publishers(self) -> list[Publisher[Any]]:
+        """This node's publishers."""
+        return list(self._publishers)
+
+    @property
+    def subscriptions(self) -> list[Subscription[Any]]:
+        """This node's subscriptions."""
+        return list(self._subscriptions)
+
+    # ------------------------------------------------------------------ parameters
+    def declare_parameter(
+        self,
+        name: str,
+        value: Any = None,
+        *,
+        description: str = "",
+        ignore_override: bool = False,
+    ) -> Parameter:
+        """Declare a parameter; overrides replace ``value``."""
+        return self._params.declare(
+            name, value, description=description, ignore_override=ignore_override
+        )
+
+    def declare_parameters(
+        self, namespace: str, parameters: Sequence[tuple[str, Any]]
+    ) -> list[Parameter]:
+        """Declare several parameters ``namespace.name``."""
+        return self._params.declare_many(namespace, parameters)
+
+    def get_parameter(self, name: str) -> Parameter:
+        """Return a declared parameter."""
+        return self._params.get(name)
+
+    def get_parameter_or(self, name: str, alternative_value: Any = None) -> Parameter:
+        """Return a parameter, or ``alternative_value`` when undeclared."""
+        return self._params.get_or(name, alternative_value)
+
+    def has_parameter(self, name: str) -> bool:
+        """Whether a parameter is declared."""
+        return self._params.has(name)
+
+    def set_parameters(self, parameters: Sequence[Parameter]) -> list[SetParametersResult]:
+        """Set declared parameters."""
+        return self._params.set(parameters)
+
+    def add_on_set_parameters_callback(
+        self, callback: Callable[[list[Parameter]], SetParametersResult]
+    ) -> None:
+        """Register a parameter validator."""
+        self._params.add_on_set_callback(callback)
+
+    @property
+    def parameters(self) -> dict[str, Any]:
+        """All parameter values."""
+        return self._params.items()
+
+    def _on_params(self, params: list[Parameter]) -> SetParametersResult:
+        for p in params:
+            if p.name == "use_sim_time":
+                self._apply_sim_time(bool(p.value))
+        return SetParametersResult(successful=True)
+
+    def _apply_sim_time(self, enabled: bool) -> None:
+        self._clock.enable_sim_time(enabled=enabled)
+        if enabled and self._clock_sub is None:
+            self._clock_sub = self.create_subscription(
+                ClockMsg, "/clock", self._on_clock, _CLOCK_QOS
+            )
+        elif not enabled and self._clock_sub is not None:
+            self.destroy_subscription(self._clock_sub)
+            self._clock_sub = None
+
+    def _on_clock(self, msg: Any) -> None:
+        self._clock.set_sim_time_ns(time_to_ns(msg.clock))
+        self.context.wake()
+
+    # ------------------------------------------------------------------ graph queries
+    def get_node_names(self) -> list[str]:
+        """Names of all nodes in the graph."""
+        return [n.name for n in self.context.graph.nodes()]
+
+    def get_node_names_and_namespaces(self) -> list[tuple[str, str]]:
+        """``(name, namespace)`` of all nodes in the graph."""
+        return [(n.name, n.namespace) for n in self.context.graph.nodes()]
+
+    def get_topic_names_and_types(self) -> list[tuple[str, list[str]]]:
+        """``(topic, [types])`` of all topics in the graph."""
+        return self.context.graph.topic_names_and_types()
+
+    def get_publishers_info_by_topic(self, topic: str) -> list[EndpointInfo]:
+        """Publishers of a topic (name expanded for this node)."""
+        name = self.resolve_topic_name(topic, only_expand=True)
+        return [e for e in self.context.graph.endpoints(name) if e.kind == "publisher"]
+
+    def get_subscriptions_info_by_topic(self, topic: str) -> list[EndpointInfo]:
+        """Subscriptions of a topic (name expanded for this node)."""
+        name = self.resolve_topic_name(topic, only_expand=True)
+        return [e for e in self.context.graph.endpoints(name) if e.kind == "subscription"]
+
+    def count_publishers(self, topic: str) -> int:
+        """Number of publishers of a topic in the graph."""
+        return len(self.get_publishers_info_by_topic(topic))
+
+    def count_subscribers(self, topic: str) -> int:
+        """Number of subscriptions of a topic in the graph."""
+        return len(self.get_subscriptions_info_by_topic(topic))

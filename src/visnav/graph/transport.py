@@ -1,0 +1,275 @@
+"""The inter-process transport: a Zenoh session per :class:`~visnav.graph.Context`.
+
+How processes find each other with no configuration on one machine:
+
+* Every session listens on an ephemeral loopback port and, if it is free, on the
+  domain's *rendezvous port* ``20000 + crc32(str(domain)) % 10000`` on 127.0.0.1.
+* Every session also connects to the rendezvous port (retrying in the
+  background), so the first process of a domain becomes the meeting point and
+  Zenoh's gossip scouting then meshes all peers directly. When the meeting point
+  exits, the next process to start takes the port over and the others reconnect.
+* Multicast scouting is off: nothing leaves the machine unless
+  ``VISNAV_CONNECT=tcp/HOST:PORT[,..]`` (connect to another machine) or
+  ``VISNAV_LISTEN=tcp/0.0.0.0:PORT`` (accept other machines) is set.
+
+Domains are separated twice: by the rendezvous port and, since two domains may
+share a port, by the domain as the first chunk of every key expression.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import re
+import threading
+import zlib
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import zenoh
+from zenoh import ext as zext
+
+from visnav.graph.errors import TransportError
+
+__all__ = [
+    "ENV_CONNECT",
+    "ENV_DOMAIN",
+    "ENV_LISTEN",
+    "TransportConfig",
+    "ZenohPublisher",
+    "ZenohTransport",
+    "rendezvous_port",
+    "resolve_domain",
+]
+
+ENV_DOMAIN = "VISNAV_DOMAIN"
+ENV_CONNECT = "VISNAV_CONNECT"
+ENV_LISTEN = "VISNAV_LISTEN"
+DEFAULT_DOMAIN = 0
+_MAX_DOMAIN = 2**31 - 1
+_ENDPOINT_RE = re.compile(r"^(tcp|udp|quic|tls|unixsock-stream)/.+$")
+
+
+def resolve_domain(domain: str | int | None, env: Mapping[str, str] | None = None) -> int:
+    """Return the graph domain id: the argument, else ``VISNAV_DOMAIN``, else 0.
+
+    The domain is an integer like ``ROS_DOMAIN_ID`` (any value >= 0; tests pick
+    large random ones to stay private).
+
+    Raises:
+        TransportError: the domain is not a non-negative integer.
+    """
+    env = os.environ if env is None else env
+    value = domain if domain is not None else env.get(ENV_DOMAIN, str(DEFAULT_DOMAIN))
+    try:
+        number = int(value)
+    except (TypeError, ValueError):
+        number = -1
+    if isinstance(value, bool) or number < 0 or number > _MAX_DOMAIN:
+        msg = (
+            f"{ENV_DOMAIN} / domain is {value!r}: expected an integer from 0 to {_MAX_DOMAIN} "
+            "(for example VISNAV_DOMAIN=42)"
+        )
+        raise TransportError(msg)
+    return number
+
+
+def rendezvous_port(domain: int) -> int:
+    """Return the loopback port where the processes of ``domain`` meet."""
+    return 20000 + zlib.crc32(str(domain).encode()) % 10000
+
+
+def _endpoints(value: str, var: str) -> tuple[str, ...]:
+    eps = tuple(e.strip() for e in value.split(",") if e.strip())
+    for ep in eps:
+        if not _ENDPOINT_RE.match(ep):
+            msg = f"{var} has endpoint {ep!r}: expected a Zenoh locator like tcp/192.168.1.5:7447"
+            raise TransportError(msg)
+    return eps
+
+
+@dataclasses.dataclass(frozen=True)
+class TransportConfig:
+    """Where a session listens and connects.
+
+    Attributes:
+        domain: the graph domain (first chunk of every key).
+        connect: extra endpoints to connect to (other machines).
+        listen: extra endpoints to listen on.
+    """
+
+    domain: int = DEFAULT_DOMAIN
+    connect: tuple[str, ...] = ()
+    listen: tuple[str, ...] = ()
+
+    @classmethod
+    def from_env(
+        cls, domain: str | int | None = None, env: Mapping[str, str] | None = None
+    ) -> TransportConfig:
+        """Build the configuration from arguments and ``VISNAV_*`` environment variables."""
+        env = os.environ if env is None else env
+        return cls(
+            domain=resolve_domain(domain, env),
+            connect=_endpoints(env.get(ENV_CONNECT, ""), ENV_CONNECT),
+            listen=_endpoints(env.get(ENV_LISTEN, ""), ENV_LISTEN),
+        )
+
+    def zenoh_config(self) -> dict[str, Any]:
+        """Return the Zenoh configuration (as a JSON-able dict)."""
+        meet = f"tcp/127.0.0.1:{rendezvous_port(self.domain)}"
+        return {
+            "mode": "peer",
+            "listen": {
+                "endpoints": [meet, "tcp/127.0.0.1:0", *self.listen],
+                "exit_on_failure": False,
+            },
+            "connect": {
+                "endpoints": [meet, *self.connect],
+                "exit_on_failure": False,
+                "timeout_ms": 0,
+                "retry": {
+                    "period_init_ms": 200,
+                    "period_max_ms": 1000,
+                    "period_increase_factor": 2,
+                },
+            },
+            "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
+        }
+
+
+class ZenohPublisher:
+    """A Zenoh publisher that knows whether any remote subscriber matches."""
+
+    def __init__(self, session: zenoh.Session, key: str, *, cache_depth: int | None) -> None:
+        self._matching = False
+        self._pub: Any
+        if cache_depth is not None:
+            self._pub = zext.declare_advanced_publisher(
+                session,
+                key,
+                cache=zext.CacheConfig(max_samples=cache_depth),
+                publisher_detection=True,
+                allowed_destination=zenoh.Locality.REMOTE,
+            )
+            self._matching = True
+            self._listener = None
+        else:
+            self._pub = session.declare_publisher(key, allowed_destination=zenoh.Locality.REMOTE)
+            self._matching = bool(self._pub.matching_status.matching)
+            self._listener = self._pub.declare_matching_listener(self._on_matching)
+        self._always = cache_depth is not None
+
+    def _on_matching(self, status: Any) -> None:
+        self._matching = bool(status.matching)
+
+    @property
+    def has_subscribers(self) -> bool:
+        """True when a remote subscriber matches (always True for cached publishers)."""
+        return self._always or self._matching
+
+    def put(self, payload: bytes) -> None:
+        """Send one payload."""
+        self._pub.put(payload)
+
+    def close(self) -> None:
+        """Undeclare the publisher."""
+        with contextlib.suppress(Exception):
+            if self._listener is not None:
+                self._listener.undeclare()
+            self._pub.undeclare()
+
+
+class ZenohTransport:
+    """A Zenoh session configured for one visnav graph domain."""
+
+    def __init__(self, config: TransportConfig) -> None:
+        self.config = config
+        try:
+            self._session = zenoh.open(zenoh.Config.from_json5(json.dumps(config.zenoh_config())))
+        except Exception as exc:
+            msg = (
+                f"cannot open the Zenoh session for domain {config.domain!r}: {exc}; "
+                f"check {ENV_CONNECT}/{ENV_LISTEN}"
+            )
+            raise TransportError(msg) from exc
+        self._closed = False
+        self._lock = threading.Lock()
+        self._handles: list[Any] = []
+
+    @property
+    def session(self) -> zenoh.Session:
+        """The underlying Zenoh session."""
+        return self._session
+
+    @property
+    def zid(self) -> str:
+        """This session's Zenoh id (hex)."""
+        return str(self._session.zid())
+
+    def publisher(self, key: str, *, cache_depth: int | None = None) -> ZenohPublisher:
+        """Declare a publisher on ``key``; ``cache_depth`` keeps samples for late joiners."""
+        return ZenohPublisher(self._session, key, cache_depth=cache_depth)
+
+    def subscriber(
+        self,
+        key: str,
+        callback: Callable[[bytes], None],
+        *,
+        history: bool = False,
+    ) -> Any:
+        """Declare a subscriber to remote samples on ``key``; ``history`` fetches cached samples."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(sample.payload.to_bytes())
+
+        if history:
+            return zext.declare_advanced_subscriber(
+                self._session,
+                key,
+                on_sample,
+                history=zext.HistoryConfig(detect_late_publishers=True),
+                allowed_origin=zenoh.Locality.REMOTE,
+            )
+        return self._session.declare_subscriber(
+            key, on_sample, allowed_origin=zenoh.Locality.REMOTE
+        )
+
+    def token(self, key: str) -> Any:
+        """Declare a liveliness token (undeclared when the session closes)."""
+        return self._session.liveliness().declare_token(key)
+
+    def watch_liveliness(
+        self, key: str, on_put: Callable[[str], None], on_delete: Callable[[str], None]
+    ) -> Any:
+        """Follow liveliness tokens matching ``key`` (current ones are reported first)."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                on_put(str(sample.key_expr))
+            else:
+                on_delete(str(sample.key_expr))
+
+        return self._session.liveliness().declare_subscriber(key, on_sample, history=True)
+
+    def query_liveliness(self, key: str, *, timeout_s: float = 1.0) -> list[str]:
+        """Return the keys of the liveliness tokens alive now that match ``key``."""
+        keys: list[str] = []
+        for reply in self._session.liveliness().get(key, timeout=timeout_s):
+            if reply.ok is not None:
+                keys.append(str(reply.ok.key_expr))
+        return keys
+
+    def peers(self) -> list[str]:
+        """Return the Zenoh ids of the connected peers."""
+        return [str(z) for z in self._session.info.peers_zid()]
+
+    def close(self) -> None:
+        """Close the session (idempotent)."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        with contextlib.suppress(Exception):
+            self._session.close()  # type: ignore[no-untyped-call]
