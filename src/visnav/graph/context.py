@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.graph_cache import GraphCache
 from visnav.graph.keys import liveliness_key_pattern
+from visnav.graph.message_info import MessageInfo
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
 if TYPE_CHECKING:
@@ -200,7 +201,7 @@ class Context:
             for pub in topic.publishers:
                 if sub in pub.targets and pub.history is not None and sub.wants_history:
                     for msg in pub.history:
-                        sub.enqueue(msg)
+                        sub.enqueue(msg, pub.local_info() if sub.wants_info else None)
                         self._ready.append(sub)
             self._cond.notify_all()
 
@@ -246,16 +247,16 @@ class Context:
         """Hand ``msg`` (same object, no copy) to the in-process subscriptions of ``pub``."""
         with self._cond:
             for sub in pub.targets:
-                sub.enqueue(msg)
+                sub.enqueue(msg, pub.local_info() if sub.wants_info else None)
                 self._ready.append(sub)
             if pub.history is not None:
                 pub.history.append(msg)
             self._cond.notify()
 
-    def deliver_remote(self, sub: Subscription[Any], msg: Any) -> None:
+    def deliver_remote(self, sub: Subscription[Any], msg: Any, info: MessageInfo | None) -> None:
         """Hand a message that arrived from another process to ``sub`` (any thread)."""
         with self._cond:
-            sub.enqueue(msg)
+            sub.enqueue(msg, info)
             self._ready.append(sub)
             self._cond.notify()
 

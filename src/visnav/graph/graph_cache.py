@@ -127,6 +127,15 @@ class GraphCache:
             )
         return sorted(out, key=lambda e: (e.topic, e.kind, e.node_fqn, e.entity_id))
 
+    def publisher_node(self, zid: str, entity_id: int) -> str | None:
+        """Return the fully qualified node name of a publisher, or None if unknown."""
+        with self._lock:
+            toks = list(self._tokens.values())
+        for t in toks:
+            if t.kind == "MP" and t.zid == zid and t.entity_id == entity_id:
+                return f"{t.namespace.rstrip('/')}/{t.node_name}"
+        return None
+
     def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
         """Return ``[(topic, [types])]`` sorted by topic (rclpy's get_topic_names_and_types)."""
         types: dict[str, set[str]] = {}

@@ -20,7 +20,9 @@ one executor must be given the same :class:`~visnav.graph.Context`.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import logging
+import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
@@ -30,6 +32,7 @@ from visnav.graph.context import Context
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.graph_cache import EndpointInfo
 from visnav.graph.keys import liveliness_token, topic_key
+from visnav.graph.message_info import MessageInfo, decode_attachment, encode_attachment
 from visnav.graph.names import (
     RemapRule,
     parse_remap_rule,
@@ -108,6 +111,7 @@ class Publisher(Generic[MsgT]):
         transient = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
         self.history: deque[Any] | None = deque(maxlen=qos.queue_limit) if transient else None
         self._zpub: Any = None
+        self.sequence = 0
 
     def link(self, targets: list[Subscription[Any]]) -> None:
         """Set the in-process subscriptions this publisher delivers to (context's job)."""
@@ -130,10 +134,21 @@ class Publisher(Generic[MsgT]):
                 f"publish a {self.type_name} or create another publisher"
             )
             raise TopicTypeConflictError(text)
+        self.sequence += 1
         self.node.context.deliver_local(self, msg)
         zpub = self._zpub
         if zpub is not None and zpub.has_subscribers:
-            zpub.put(serialize(msg))
+            att = encode_attachment(
+                self.sequence, time.time_ns(), self.entity_id, self.node.context.zid
+            )
+            zpub.put(serialize(msg), att)
+
+    def local_info(self) -> MessageInfo:
+        """The :class:`MessageInfo` of the message being delivered in-process."""
+        now = time.time_ns()
+        return MessageInfo(
+            now, now, self.sequence, self.node.context.zid, self.entity_id, from_this_process=True
+        )
 
     def get_subscription_count(self) -> int:
         """Number of matched subscriptions in the graph (all processes)."""
@@ -152,7 +167,7 @@ class Subscription(Generic[MsgT]):
         node: Node,
         msg_type: type[MsgT],
         topic_name: str,
-        callback: Callable[[MsgT], Any],
+        callback: Callable[[MsgT], Any] | Callable[[MsgT, MessageInfo], Any],
         qos: QoSProfile,
     ) -> None:
         self.node = node
@@ -162,33 +177,34 @@ class Subscription(Generic[MsgT]):
         self.callback = callback
         self.qos = qos
         self.entity_id = node.context.next_id()
-        self.queue: deque[MsgT] = deque(maxlen=qos.queue_limit)
+        self.queue: deque[tuple[MsgT, MessageInfo | None]] = deque(maxlen=qos.queue_limit)
         self.wants_history = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
+        self.wants_info = _takes_two_args(callback)
         self._zsub: Any = None
 
-    def enqueue(self, msg: MsgT) -> None:
+    def enqueue(self, msg: MsgT, info: MessageInfo | None = None) -> None:
         """Queue a message (keep-last drops the oldest)."""
-        self.queue.append(msg)
+        self.queue.append((msg, info))
 
     def take_call(self) -> Callable[[], None] | None:
         """Pop the oldest queued message as a ready-to-run callback, or None."""
         if not self.queue:
             return None
-        msg = self.queue.popleft()
-        cb = self.callback
+        msg, info = self.queue.popleft()
+        cb: Any = self.callback
+        if self.wants_info:
+            return lambda: cb(msg, info)
         return lambda: cb(msg)
 
-    def on_remote(self, payload: bytes) -> None:
+    def on_remote(self, payload: bytes, attachment: bytes | None) -> None:
         """Deserialize a remote sample and queue it (runs on a transport thread)."""
         try:
             msg = deserialize(payload, self.type_name)
-        except GraphError as exc:  # pragma: no cover - MessageError is not a GraphError
-            self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
-            return
         except ValueError as exc:
             self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
             return
-        self.node.context.deliver_remote(self, msg)
+        info = decode_attachment(attachment, time.time_ns()) if self.wants_info else None
+        self.node.context.deliver_remote(self, msg, info)
 
     def destroy(self) -> None:
         """Remove the subscription."""
@@ -262,6 +278,19 @@ class Timer:
     def destroy(self) -> None:
         """Remove the timer."""
         self.node.destroy_timer(self)
+
+
+def _takes_two_args(callback: Callable[..., Any]) -> bool:
+    try:
+        params = inspect.signature(callback).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    positional = [
+        p
+        for p in params
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty
+    ]
+    return len(positional) >= 2 or any(p.kind is p.VAR_POSITIONAL for p in params)
 
 
 def _rules(remappings: Mapping[str, str] | Sequence[str] | None) -> list[RemapRule]:
@@ -416,10 +445,12 @@ class Node:
         self,
         msg_type: type[MsgT],
         topic: str,
-        callback: Callable[[MsgT], Any],
+        callback: Callable[[MsgT], Any] | Callable[[MsgT, MessageInfo], Any],
         qos_profile: QoSProfile | int,
     ) -> Subscription[MsgT]:
         """Create a subscription (rclpy signature); ``callback(msg)`` runs in the executor.
+
+        A callback taking two arguments gets ``(msg, MessageInfo)``.
 
         Raises:
             TopicTypeConflictError: the topic carries another type in this process.

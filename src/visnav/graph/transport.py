@@ -136,6 +136,8 @@ class TransportConfig:
                 },
             },
             "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
+            # transient-local topics use zenoh-ext's advanced publisher, which needs timestamps
+            "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
         }
 
 
@@ -169,9 +171,9 @@ class ZenohPublisher:
         """True when a remote subscriber matches (always True for cached publishers)."""
         return self._always or self._matching
 
-    def put(self, payload: bytes) -> None:
-        """Send one payload."""
-        self._pub.put(payload)
+    def put(self, payload: bytes, attachment: bytes | None = None) -> None:
+        """Send one payload (with an optional attachment)."""
+        self._pub.put(payload, attachment=attachment)
 
     def close(self) -> None:
         """Undeclare the publisher."""
@@ -215,14 +217,18 @@ class ZenohTransport:
     def subscriber(
         self,
         key: str,
-        callback: Callable[[bytes], None],
+        callback: Callable[[bytes, bytes | None], None],
         *,
         history: bool = False,
     ) -> Any:
-        """Declare a subscriber to remote samples on ``key``; ``history`` fetches cached samples."""
+        """Declare a subscriber to remote samples on ``key``; ``history`` fetches cached samples.
+
+        ``callback(payload, attachment)`` runs on a Zenoh thread.
+        """
 
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(sample.payload.to_bytes())
+            att = sample.attachment
+            callback(sample.payload.to_bytes(), att.to_bytes() if att is not None else None)
 
         if history:
             return zext.declare_advanced_subscriber(

@@ -10,7 +10,39 @@ Conversions in the manner of cv_bridge and sensor_msgs_py live in
 
 from __future__ import annotations
 
+from visnav.msgs.construct import (
+    default_message,
+    get_field,
+    make,
+    message_from_dict,
+    message_to_dict,
+    message_to_yaml,
+)
 from visnav.msgs.errors import MessageError, UnknownMessageTypeError
+from visnav.msgs.image import (
+    bytes_per_pixel,
+    encoding_dtype,
+    has_alpha,
+    image_to_numpy,
+    is_bayer,
+    is_color,
+    is_depth,
+    is_mono,
+    num_channels,
+    numpy_to_image,
+    yuv422_yuy2_to_rgb,
+)
+from visnav.msgs.pointcloud import (
+    POINTFIELD_DTYPES,
+    cloud_to_structured,
+    cloud_to_xyz,
+    dtype_to_fields,
+    fields_to_dtype,
+    pack_rgb,
+    structured_to_cloud,
+    unpack_rgb,
+    xyz_to_cloud,
+)
 from visnav.msgs.serde import (
     deserialize,
     get_message_class,
@@ -66,8 +98,34 @@ from visnav.msgs.types import (
 )
 
 __all__ = [
+    "default_message",
+    "get_field",
+    "make",
+    "message_from_dict",
+    "message_to_dict",
+    "message_to_yaml",
     "MessageError",
     "UnknownMessageTypeError",
+    "bytes_per_pixel",
+    "encoding_dtype",
+    "has_alpha",
+    "image_to_numpy",
+    "is_bayer",
+    "is_color",
+    "is_depth",
+    "is_mono",
+    "num_channels",
+    "numpy_to_image",
+    "yuv422_yuy2_to_rgb",
+    "POINTFIELD_DTYPES",
+    "cloud_to_structured",
+    "cloud_to_xyz",
+    "dtype_to_fields",
+    "fields_to_dtype",
+    "pack_rgb",
+    "structured_to_cloud",
+    "unpack_rgb",
+    "xyz_to_cloud",
     "deserialize",
     "get_message_class",
     "message_definition",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -19,12 +19,15 @@ from visnav.msgs.serde import get_message_class, msg_type_name, typestore
 
 __all__ = [
     "default_message",
+    "make",
     "get_field",
     "message_fields",
     "message_from_dict",
     "message_to_dict",
     "message_to_yaml",
 ]
+
+MsgT = TypeVar("MsgT")
 
 _NUMPY: dict[str, type[np.generic]] = {
     "bool": np.bool_,
@@ -83,6 +86,27 @@ def default_message(type_name: str) -> Any:
     """
     cls = get_message_class(type_name)
     return cls(**{name: _default_for(desc) for name, desc in message_fields(type_name)})
+
+
+def make(msg_type: type[MsgT], **fields: Any) -> MsgT:
+    """Construct a message with unspecified fields at their ROS defaults.
+
+    rosbags' message classes need every field; rclpy's messages default them. ``make``
+    gives the rclpy behaviour: ``make(Twist, linear=Vector3(x=0.5, y=0.0, z=0.0))``.
+
+    Raises:
+        MessageError: a field name that the type does not have.
+    """
+    type_name = msg_type_name(msg_type)
+    defaults = {name: _default_for(desc) for name, desc in message_fields(type_name)}
+    unknown = [k for k in fields if k not in defaults]
+    if unknown:
+        close = difflib.get_close_matches(unknown[0], list(defaults), n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        text = f"{type_name} has no field '{unknown[0]}': fields are {', '.join(defaults)}{hint}"
+        raise MessageError(text)
+    defaults.update(fields)
+    return msg_type(**defaults)
 
 
 def _convert(desc: Any, value: Any, path: str) -> Any:

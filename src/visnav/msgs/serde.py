@@ -10,6 +10,7 @@ import difflib
 import functools
 from typing import Any
 
+from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -104,7 +105,7 @@ def serialize(msg: Any) -> bytes:
     name = msg_type_name(msg)
     try:
         return bytes(typestore().serialize_cdr(msg, name))
-    except (TypeError, ValueError, AttributeError, KeyError, OverflowError) as exc:
+    except (SerdeError, TypeError, ValueError, AttributeError, KeyError, OverflowError) as exc:
         text = f"cannot serialize {name}: {exc}; check the field types against the definition"
         raise MessageError(text) from exc
 
@@ -125,7 +126,7 @@ def deserialize(data: bytes | memoryview, type_name: str) -> Any:
     get_message_class(type_name)
     try:
         return typestore().deserialize_cdr(data, type_name)
-    except (ValueError, IndexError, KeyError, TypeError, AssertionError) as exc:
+    except (SerdeError, ValueError, IndexError, KeyError, TypeError, AssertionError) as exc:
         text = (
             f"cannot deserialize {len(data)} bytes as {type_name}: {exc}; "
             "expected CDR of that type (is the topic's type right?)"

@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from visnav.graph.context import Context
+from visnav.graph.message_info import MessageInfo
 from visnav.graph.node import Node
 from visnav.graph.qos import DurabilityPolicy, QoSProfile
 from visnav.msgs.types import TFMessage, TransformStamped
@@ -103,6 +104,7 @@ class TransformListener:
         elif node is None:
             node = Node("transform_listener")
         self.node = node
+        self._authorities: dict[tuple[str, int], str] = {}
         self._tf = node.create_subscription(TFMessage, "/tf", self._on_tf, qos)
         self._static = node.create_subscription(
             TFMessage, "/tf_static", self._on_static, static_qos
@@ -112,13 +114,27 @@ class TransformListener:
             self._thread = threading.Thread(target=ctx.spin, name="tf_listener", daemon=True)
             self._thread.start()
 
-    def _on_tf(self, msg: Any) -> None:
-        for t in msg.transforms:
-            self.buffer.set_transform(t, "default_authority")
+    def _authority(self, info: MessageInfo | None) -> str:
+        if info is None:
+            return "default_authority"
+        key = (info.publisher_zid, info.publisher_entity_id)
+        name = self._authorities.get(key)
+        if name is None:
+            name = self.node.context.graph.publisher_node(*key)
+            if name is None:
+                return "default_authority"
+            self._authorities[key] = name
+        return name
 
-    def _on_static(self, msg: Any) -> None:
+    def _on_tf(self, msg: Any, info: MessageInfo | None) -> None:
+        authority = self._authority(info)
         for t in msg.transforms:
-            self.buffer.set_transform_static(t, "default_authority")
+            self.buffer.set_transform(t, authority)
+
+    def _on_static(self, msg: Any, info: MessageInfo | None) -> None:
+        authority = self._authority(info)
+        for t in msg.transforms:
+            self.buffer.set_transform_static(t, authority)
 
     def unregister(self) -> None:
         """Stop listening (and stop the background thread)."""

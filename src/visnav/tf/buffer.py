@@ -1,0 +1,754 @@
+"""The transform buffer: tf2's ``BufferCore`` semantics, rclpy's ``tf2_ros.Buffer`` shape.
+
+A :class:`Buffer` stores, per child frame, a sliding window of stamped
+transforms to its parent (dynamic, from ``/tf``) or one transform valid at all
+times (static, from ``/tf_static``), and answers "what is ``T_target_source``
+at time t" by walking both frames up to their common ancestor.
+
+Semantics follow tf2 (``geometry2/tf2/src/buffer_core.cpp``, ``cache.cpp``):
+
+* time 0 means "the latest time at which the whole chain is known": the
+  minimum over the chain's links of their newest stamp, static links ignored
+  (tf2's ``getLatestCommonTime``); an all-static chain resolves to time 0;
+* between two stamps the translation is interpolated linearly and the
+  rotation by slerp; an exact stamp is returned unchanged; before the oldest
+  or after the newest sample of a link the lookup raises
+  :class:`~visnav.tf.errors.ExtrapolationException` (no extrapolation);
+* each frame keeps samples back to ``newest - cache_time``; inserting a sample
+  older than that is refused (tf2's ``TF_OLD_DATA``);
+* every sample records its own parent, so a frame can be re-parented; between
+  two samples with different parents the older sample is used unchanged;
+* a static transform replaces a dynamic cache of the same child (and vice versa);
+* frame ids may not be empty or start with ``/`` in lookups
+  (:class:`~visnav.tf.errors.InvalidArgumentException`); on insertion a leading
+  ``/`` is stripped, as tf2 does;
+* inserted transforms with NaN, a self-transform, an empty frame id, or a
+  quaternion whose squared norm differs from 1 by 0.01 or more are refused
+  (``set_transform`` logs why and returns False, tf2's ``TF_NAN_INPUT`` and
+  ``TF_DENORMALIZED_QUATERNION``); an accepted quaternion is normalised
+  (tf2 stores it as given).
+
+Times are ``int`` nanoseconds, or ``builtin_interfaces/Time`` messages (and
+objects with an integer ``nanoseconds`` attribute, like ``rclpy.time.Time``)
+for code written against rclpy. Timeouts are wall-clock seconds (float) or a
+``builtin_interfaces/Duration``, as rclpy waits on the system clock.
+
+One lock guards all caches, so a listener thread may insert while other
+threads look up.
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+import math
+import threading
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, Protocol, overload, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav.msgs.errors import MessageError
+from visnav.msgs.time import duration_to_ns, ns_to_time, time_to_ns
+from visnav.msgs.types import (
+    Duration,
+    Header,
+    Quaternion,
+    Time,
+    Transform,
+    TransformStamped,
+    Vector3,
+)
+from visnav.tf import _scalar
+from visnav.tf._cache import FrameCache
+from visnav.tf._scalar import IDENTITY, Pose7
+from visnav.tf._tree import fmt_time, latest_common_time, walk
+from visnav.tf.errors import (
+    InvalidArgumentException,
+    LookupException,
+    TransformException,
+)
+
+__all__ = ["Buffer", "FrameInfo", "TimeLike"]
+
+_LOG = logging.getLogger("visnav.tf")
+
+_NS_PER_S = 1_000_000_000
+# tf2 refuses a quaternion when |x^2 + y^2 + z^2 + w^2 - 1| >= this.
+_QUATERNION_NORMALIZATION_TOLERANCE = 10e-3
+
+
+@runtime_checkable
+class _HasNanoseconds(Protocol):
+    @property
+    def nanoseconds(self) -> int: ...
+
+
+TimeLike = int | Time
+"""A time: integer nanoseconds (0 = latest) or a ``builtin_interfaces/Time`` message."""
+
+
+@dataclass(frozen=True)
+class FrameInfo:
+    """What the buffer knows about one child frame (the data of ``all_frames_as_yaml``).
+
+    Attributes:
+        frame_id: the child frame.
+        parent: the parent of its newest sample.
+        authority: who inserted the newest sample (tf2's "broadcaster").
+        is_static: the frame came from a static transform.
+        rate_hz: samples per second of stamp time (tf2's figure; 10000 for a static frame).
+        most_recent_ns: newest stamp (0 for a static frame, as tf2).
+        oldest_ns: oldest stamp kept (0 for a static frame).
+        num_samples: samples kept.
+    """
+
+    frame_id: str
+    parent: str
+    authority: str
+    is_static: bool
+    rate_hz: float
+    most_recent_ns: int
+    oldest_ns: int
+    num_samples: int
+
+    @property
+    def buffer_length_s(self) -> float:
+        """Seconds of stamp time between the oldest and the newest sample."""
+        return (self.most_recent_ns - self.oldest_ns) / _NS_PER_S
+
+
+def _to_ns(value: object, name: str) -> int:
+    """Convert a time argument to integer nanoseconds (see the module docs)."""
+    if type(value) is int:
+        ns = value
+    elif isinstance(value, Time):
+        try:
+            ns = time_to_ns(value)
+        except MessageError as exc:
+            msg = f"{name}: {exc}"
+            raise InvalidArgumentException(msg) from exc
+    elif isinstance(value, bool | float):
+        msg = (
+            f"{name} is {value!r}: expected int nanoseconds (0 = latest) or a "
+            "builtin_interfaces/Time; convert seconds with visnav.msgs.sec_to_ns"
+        )
+        raise InvalidArgumentException(msg)
+    elif isinstance(value, _HasNanoseconds):
+        ns = int(value.nanoseconds)
+    elif hasattr(value, "__index__"):
+        ns = int(value.__index__())
+    else:
+        msg = (
+            f"{name} is {value!r} of type {type(value).__name__}: expected int nanoseconds "
+            "or a builtin_interfaces/Time"
+        )
+        raise InvalidArgumentException(msg)
+    if ns < 0:
+        msg = f"{name} is {ns} ns: expected a time >= 0 (0 = latest)"
+        raise InvalidArgumentException(msg)
+    return ns
+
+
+def _timeout_s(value: object) -> float:
+    if isinstance(value, Duration):
+        return duration_to_ns(value) / _NS_PER_S
+    if isinstance(value, _HasNanoseconds):
+        return int(value.nanoseconds) / _NS_PER_S
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        seconds = float(value)
+        if math.isfinite(seconds) and seconds >= 0.0:
+            return seconds
+    msg = f"timeout is {value!r}: expected seconds >= 0 or a builtin_interfaces/Duration"
+    raise InvalidArgumentException(msg)
+
+
+def _pose_to_msg(pose: Pose7, target: str, source: str, time_ns: int) -> TransformStamped:
+    tx, ty, tz, qx, qy, qz, qw = pose
+    return TransformStamped(
+        Header(ns_to_time(time_ns), target),
+        source,
+        Transform(Vector3(tx, ty, tz), Quaternion(qx, qy, qz, qw)),
+    )
+
+
+class Buffer:
+    """Stores stamped transforms and looks up ``T_target_source`` at any stored time.
+
+    Args:
+        cache_time: how much history to keep per frame, in seconds (or a
+            ``builtin_interfaces/Duration``); tf2's default is 10 s.
+
+    Example:
+        >>> from visnav.msgs import Header, Quaternion, Time, Transform, TransformStamped, Vector3
+        >>> buf = Buffer()
+        >>> msg = TransformStamped(
+        ...     Header(Time(0, 0), "base_link"),
+        ...     "camera",
+        ...     Transform(Vector3(0.1, 0.0, 0.5), Quaternion(0.0, 0.0, 0.0, 1.0)),
+        ... )
+        >>> buf.set_transform_static(msg, "my_node")
+        True
+        >>> buf.lookup_transform_matrix("base_link", "camera")[:3, 3].tolist()
+        [0.1, 0.0, 0.5]
+    """
+
+    def __init__(self, cache_time: float | Duration = 10.0) -> None:
+        if isinstance(cache_time, Duration):
+            cache_ns = duration_to_ns(cache_time)
+        elif isinstance(cache_time, int | float) and not isinstance(cache_time, bool):
+            if not math.isfinite(cache_time):
+                msg = f"cache_time is {cache_time}: expected finite seconds >= 0"
+                raise InvalidArgumentException(msg)
+            cache_ns = round(float(cache_time) * _NS_PER_S)
+        else:
+            msg = f"cache_time is {cache_time!r}: expected seconds or a builtin_interfaces/Duration"
+            raise InvalidArgumentException(msg)
+        if cache_ns < 0:
+            msg = f"cache_time is {cache_ns / _NS_PER_S} s: expected >= 0"
+            raise InvalidArgumentException(msg)
+        self._cache_time_ns = cache_ns
+        self._lock = threading.Lock()
+        self._cond = threading.Condition(self._lock)
+        # Every frame id ever seen (child or parent), in first-seen order (tf2's frame numbers).
+        self._known: dict[str, None] = {}
+        # Child frame -> its cache. Root frames (only ever parents) have none.
+        self._caches: dict[str, FrameCache] = {}
+
+    @property
+    def cache_time_ns(self) -> int:
+        """How far behind each frame's newest stamp samples are kept, in nanoseconds."""
+        return self._cache_time_ns
+
+    # ------------------------------------------------------------------ insertion
+
+    def set_transform(
+        self, transform: TransformStamped, authority: str, *, strict: bool = False
+    ) -> bool:
+        """Insert a dynamic transform (as received on ``/tf``).
+
+        Args:
+            transform: ``T_parent_child`` with ``header.frame_id`` = parent,
+                ``child_frame_id`` = child and ``header.stamp`` its time.
+            authority: who sent it (a node name); shown as the broadcaster in
+                :meth:`all_frames_as_yaml`.
+            strict: raise instead of logging and returning False.
+
+        Returns:
+            True if stored; False if refused (reason logged on the ``visnav.tf`` logger).
+
+        Raises:
+            InvalidArgumentException: only with ``strict=True``, for a refused transform.
+        """
+        return self._insert(transform, authority, is_static=False, strict=strict)
+
+    def set_transform_static(
+        self, transform: TransformStamped, authority: str, *, strict: bool = False
+    ) -> bool:
+        """Insert a static transform (as received on ``/tf_static``): valid at every time.
+
+        A later static transform for the same child replaces it. Arguments and
+        return value as :meth:`set_transform`.
+        """
+        return self._insert(transform, authority, is_static=True, strict=strict)
+
+    def _refuse(self, code: str, text: str, *, strict: bool) -> bool:
+        message = f"{code}: {text}"
+        if strict:
+            raise InvalidArgumentException(message)
+        _LOG.error("%s", message)
+        return False
+
+    def _insert(
+        self, transform: TransformStamped, authority: str, *, is_static: bool, strict: bool
+    ) -> bool:
+        parent = transform.header.frame_id.removeprefix("/")
+        child = transform.child_frame_id.removeprefix("/")
+        t, r = transform.transform.translation, transform.transform.rotation
+        values = (float(t.x), float(t.y), float(t.z), float(r.x), float(r.y), float(r.z))
+        qw = float(r.w)
+        if not child:
+            return self._refuse(
+                "TF_NO_CHILD_FRAME_ID",
+                f'transform from authority "{authority}" (parent "{parent}") has an empty '
+                "child_frame_id: set the frame this transform places",
+                strict=strict,
+            )
+        if not parent:
+            return self._refuse(
+                "TF_NO_FRAME_ID",
+                f'transform for child "{child}" from authority "{authority}" has an empty '
+                "header.frame_id: set the parent frame",
+                strict=strict,
+            )
+        if child == parent:
+            return self._refuse(
+                "TF_SELF_TRANSFORM",
+                f'transform from authority "{authority}" has frame_id and child_frame_id both '
+                f'"{child}": a frame cannot be its own parent',
+                strict=strict,
+            )
+        if not all(math.isfinite(v) for v in (*values, qw)):
+            return self._refuse(
+                "TF_NAN_INPUT",
+                f'transform for child "{child}" from authority "{authority}" has a non-finite '
+                f"value: translation ({values[0]}, {values[1]}, {values[2]}) rotation "
+                f"({values[3]}, {values[4]}, {values[5]}, {qw})",
+                strict=strict,
+            )
+        qx, qy, qz = values[3], values[4], values[5]
+        norm2 = qx * qx + qy * qy + qz * qz + qw * qw
+        if abs(norm2 - 1.0) >= _QUATERNION_NORMALIZATION_TOLERANCE:
+            return self._refuse(
+                "TF_DENORMALIZED_QUATERNION",
+                f'transform for child "{child}" from authority "{authority}" has rotation '
+                f"(x, y, z, w) = ({qx}, {qy}, {qz}, {qw}) with squared norm {norm2:.6g}: "
+                f"expected a unit quaternion (within {_QUATERNION_NORMALIZATION_TOLERANCE})",
+                strict=strict,
+            )
+        try:
+            stamp = time_to_ns(transform.header.stamp)
+        except MessageError as exc:
+            return self._refuse(
+                "TF_INVALID_STAMP", f'transform for child "{child}": {exc}', strict=strict
+            )
+        if stamp < 0:
+            return self._refuse(
+                "TF_INVALID_STAMP",
+                f'transform for child "{child}" has a negative stamp {fmt_time(stamp)} s',
+                strict=strict,
+            )
+        inv = 1.0 / math.sqrt(norm2)
+        pose: Pose7 = (values[0], values[1], values[2], qx * inv, qy * inv, qz * inv, qw * inv)
+        with self._lock:
+            cache = self._caches.get(child)
+            if cache is None or cache.is_static != is_static:
+                cache = FrameCache(is_static=is_static, cache_time_ns=self._cache_time_ns)
+                self._caches[child] = cache
+            if not cache.insert(stamp, parent, pose):
+                latest = cache.newest_ns
+                oldest_allowed = latest - self._cache_time_ns
+                _LOG.warning(
+                    "TF_OLD_DATA: ignoring data from the past for frame %s at time %s s "
+                    "according to authority %s: it is older than the cache window "
+                    "(newest %s s - cache_time %s s = %s s)",
+                    child,
+                    fmt_time(stamp),
+                    authority,
+                    fmt_time(latest),
+                    fmt_time(self._cache_time_ns),
+                    fmt_time(oldest_allowed),
+                )
+                return False
+            cache.authority = authority
+            self._known.setdefault(child, None)
+            self._known.setdefault(parent, None)
+            self._cond.notify_all()
+        return True
+
+    def clear(self) -> None:
+        """Drop every stored sample (tf2 does this on a backwards time jump); frames stay known."""
+        with self._lock:
+            self._caches.clear()
+
+    # ------------------------------------------------------------------ lookups
+
+    def lookup_transform(
+        self,
+        target_frame: str,
+        source_frame: str,
+        time_ns: TimeLike = 0,
+        *,
+        timeout: float | Duration = 0.0,
+    ) -> TransformStamped:
+        """Return ``T_target_source``: the transform mapping points in source into target.
+
+        Args:
+            target_frame: the frame to transform into (``header.frame_id`` of the result).
+            source_frame: the frame to transform from (``child_frame_id`` of the result).
+            time_ns: the time, int nanoseconds or a ``builtin_interfaces/Time``; 0 means the
+                latest time at which the whole chain is available.
+            timeout: wait up to this many wall-clock seconds for the transform to become
+                available (0: do not wait).
+
+        Returns:
+            The transform, stamped at the requested (or resolved latest common) time.
+
+        Raises:
+            LookupException: a frame is unknown (the message lists the closest known frames).
+            ConnectivityException: the frames are in unconnected trees.
+            ExtrapolationException: a link has no data at that time.
+            InvalidArgumentException: an empty frame id, a leading ``/``, a bad time.
+        """
+        t = _to_ns(time_ns, "time")
+        if timeout:
+            self._wait(target_frame, source_frame, t, _timeout_s(timeout))
+        with self._lock:
+            pose, resolved = self._lookup(target_frame, source_frame, t)
+        return _pose_to_msg(pose, target_frame, source_frame, resolved)
+
+    def lookup_transform_matrix(
+        self,
+        target_frame: str,
+        source_frame: str,
+        time_ns: TimeLike = 0,
+        *,
+        timeout: float | Duration = 0.0,
+    ) -> NDArray[np.float64]:
+        """Return ``T_target_source`` as a 4x4 float64 matrix: the fast path.
+
+        Arguments and errors as :meth:`lookup_transform`.
+        """
+        t = _to_ns(time_ns, "time")
+        if timeout:
+            self._wait(target_frame, source_frame, t, _timeout_s(timeout))
+        with self._lock:
+            pose, _ = self._lookup(target_frame, source_frame, t)
+        return np.array(_scalar.pose_to_rows(pose))
+
+    def lookup_transform_full(
+        self,
+        target_frame: str,
+        target_time: TimeLike,
+        source_frame: str,
+        source_time: TimeLike,
+        fixed_frame: str,
+        *,
+        timeout: float | Duration = 0.0,
+    ) -> TransformStamped:
+        """Return the transform from source at ``source_time`` to target at ``target_time``.
+
+        The chain goes through ``fixed_frame``, assumed not to move between the two
+        times: ``T_target(t_target)_source(t_source) = T_target_fixed(t_target) @
+        T_fixed_source(t_source)``. The classic use: where is, in the robot's frame now,
+        an object seen by the robot one second ago (``fixed_frame`` = ``"odom"`` or ``"map"``).
+
+        Args:
+            target_frame: the frame to transform into.
+            target_time: the time of the target frame (0: latest common time of target/fixed).
+            source_frame: the frame to transform from.
+            source_time: the time of the source frame (0: latest common time of fixed/source).
+            fixed_frame: a frame that does not move between the two times.
+            timeout: wall-clock seconds to wait for both halves (0: do not wait).
+
+        Returns:
+            The transform, stamped at the (resolved) target time.
+
+        Raises:
+            LookupException, ConnectivityException, ExtrapolationException,
+            InvalidArgumentException: as :meth:`lookup_transform`.
+        """
+        tt = _to_ns(target_time, "target_time")
+        ts = _to_ns(source_time, "source_time")
+        if timeout:
+            self._wait_full(target_frame, tt, source_frame, ts, fixed_frame, _timeout_s(timeout))
+        with self._lock:
+            pose, resolved = self._lookup_full(target_frame, tt, source_frame, ts, fixed_frame)
+        return _pose_to_msg(pose, target_frame, source_frame, resolved)
+
+    def lookup_transform_full_matrix(
+        self,
+        target_frame: str,
+        target_time: TimeLike,
+        source_frame: str,
+        source_time: TimeLike,
+        fixed_frame: str,
+        *,
+        timeout: float | Duration = 0.0,
+    ) -> NDArray[np.float64]:
+        """Return :meth:`lookup_transform_full`'s transform as a 4x4 float64 matrix."""
+        tt = _to_ns(target_time, "target_time")
+        ts = _to_ns(source_time, "source_time")
+        if timeout:
+            self._wait_full(target_frame, tt, source_frame, ts, fixed_frame, _timeout_s(timeout))
+        with self._lock:
+            pose, _ = self._lookup_full(target_frame, tt, source_frame, ts, fixed_frame)
+        return np.array(_scalar.pose_to_rows(pose))
+
+    @overload
+    def can_transform(
+        self,
+        target_frame: str,
+        source_frame: str,
+        time_ns: TimeLike = 0,
+        *,
+        timeout: float | Duration = 0.0,
+        return_debug_tuple: Literal[False] = False,
+    ) -> bool: ...
+
+    @overload
+    def can_transform(
+        self,
+        target_frame: str,
+        source_frame: str,
+        time_ns: TimeLike = 0,
+        *,
+        timeout: float | Duration = 0.0,
+        return_debug_tuple: Literal[True],
+    ) -> tuple[bool, str]: ...
+
+    def can_transform(
+        self,
+        target_frame: str,
+        source_frame: str,
+        time_ns: TimeLike = 0,
+        *,
+        timeout: float | Duration = 0.0,
+        return_debug_tuple: bool = False,
+    ) -> bool | tuple[bool, str]:
+        """Tell whether :meth:`lookup_transform` would succeed; never raises for frame problems.
+
+        Args:
+            target_frame: the frame to transform into.
+            source_frame: the frame to transform from.
+            time_ns: as in :meth:`lookup_transform`.
+            timeout: wall-clock seconds to wait for the transform (0: answer now).
+            return_debug_tuple: return ``(ok, reason)`` (reason is "" when ok), as rclpy.
+
+        Returns:
+            ``ok``, or ``(ok, reason)``.
+
+        Raises:
+            InvalidArgumentException: a malformed time or timeout.
+        """
+        t = _to_ns(time_ns, "time")
+        if timeout:
+            ok, reason = self._wait(target_frame, source_frame, t, _timeout_s(timeout))
+        else:
+            with self._lock:
+                ok, reason = self._check(target_frame, source_frame, t)
+        return (ok, reason) if return_debug_tuple else ok
+
+    @overload
+    def can_transform_full(
+        self,
+        target_frame: str,
+        target_time: TimeLike,
+        source_frame: str,
+        source_time: TimeLike,
+        fixed_frame: str,
+        *,
+        timeout: float | Duration = 0.0,
+        return_debug_tuple: Literal[False] = False,
+    ) -> bool: ...
+
+    @overload
+    def can_transform_full(
+        self,
+        target_frame: str,
+        target_time: TimeLike,
+        source_frame: str,
+        source_time: TimeLike,
+        fixed_frame: str,
+        *,
+        timeout: float | Duration = 0.0,
+        return_debug_tuple: Literal[True],
+    ) -> tuple[bool, str]: ...
+
+    def can_transform_full(
+        self,
+        target_frame: str,
+        target_time: TimeLike,
+        source_frame: str,
+        source_time: TimeLike,
+        fixed_frame: str,
+        *,
+        timeout: float | Duration = 0.0,
+        return_debug_tuple: bool = False,
+    ) -> bool | tuple[bool, str]:
+        """Tell whether :meth:`lookup_transform_full` would succeed (arguments as there)."""
+        tt = _to_ns(target_time, "target_time")
+        ts = _to_ns(source_time, "source_time")
+        if timeout:
+            ok, reason = self._wait_full(
+                target_frame, tt, source_frame, ts, fixed_frame, _timeout_s(timeout)
+            )
+        else:
+            with self._lock:
+                ok, reason = self._check_full(target_frame, tt, source_frame, ts, fixed_frame)
+        return (ok, reason) if return_debug_tuple else ok
+
+    # ------------------------------------------------------------------ introspection
+
+    def get_frames(self) -> list[str]:
+        """Every frame id seen, as child or parent, in first-seen order."""
+        with self._lock:
+            return list(self._known)
+
+    def has_frame(self, frame_id: str) -> bool:
+        """Whether ``frame_id`` has been seen as a child or a parent."""
+        with self._lock:
+            return frame_id in self._known
+
+    def get_parent(self, frame_id: str, time_ns: TimeLike = 0) -> str | None:
+        """The parent of ``frame_id`` at ``time_ns`` (0: newest); None for a root or no data."""
+        t = _to_ns(time_ns, "time")
+        with self._lock:
+            cache = self._caches.get(frame_id)
+            sample = cache.get(t) if cache is not None else None
+        return sample[0] if sample is not None else None
+
+    def frame_infos(self) -> dict[str, FrameInfo]:
+        """Per child frame: parent, authority, rate and time range (first-seen order)."""
+        with self._lock:
+            out: dict[str, FrameInfo] = {}
+            for frame in self._known:
+                cache = self._caches.get(frame)
+                if cache is None:
+                    continue
+                out[frame] = FrameInfo(
+                    frame_id=frame,
+                    parent=cache.parent,
+                    authority=cache.authority,
+                    is_static=cache.is_static,
+                    rate_hz=cache.rate_hz(),
+                    most_recent_ns=cache.newest_ns,
+                    oldest_ns=cache.oldest_ns,
+                    num_samples=len(cache.samples),
+                )
+            return out
+
+    def all_frames_as_yaml(self, current_time: TimeLike | None = None) -> str:
+        """The frames as tf2's ``allFramesAsYAML`` prints them (also the ``tf2_frames`` service).
+
+        One mapping per child frame with ``parent``, ``broadcaster``, ``rate``,
+        ``most_recent_transform``, ``oldest_transform``, ``transform_delay`` (only
+        when ``current_time`` is given) and ``buffer_length``; ``[]`` when empty.
+        """
+        now = None if current_time is None else _to_ns(current_time, "current_time")
+        infos = self.frame_infos()
+        if not infos:
+            return "[]"
+        lines: list[str] = []
+        for info in infos.values():
+            broadcaster = (info.authority or "no recorded authority").replace("'", "''")
+            parent = info.parent.replace("'", "''")
+            lines.append(f"{info.frame_id}:")
+            lines.append(f"  parent: '{parent}'")
+            lines.append(f"  broadcaster: '{broadcaster}'")
+            lines.append(f"  rate: {info.rate_hz:.3f}")
+            lines.append(f"  most_recent_transform: {fmt_time(info.most_recent_ns)}")
+            lines.append(f"  oldest_transform: {fmt_time(info.oldest_ns)}")
+            if now:
+                lines.append(f"  transform_delay: {(now - info.most_recent_ns) / _NS_PER_S:.3f}")
+            lines.append(f"  buffer_length: {info.buffer_length_s:.3f}")
+        return "\n".join(lines) + "\n"
+
+    def all_frames_as_string(self) -> str:
+        """One line per child frame: ``Frame X exists with parent Y.`` (tf2's format)."""
+        return "".join(
+            f"Frame {info.frame_id} exists with parent {info.parent}.\n"
+            for info in self.frame_infos().values()
+        )
+
+    # ------------------------------------------------------------------ internals (lock held)
+
+    def _validate(self, frame: str, what: str) -> None:
+        if not frame:
+            msg = f'Invalid argument "" passed to {what}: tf2 frame ids cannot be empty'
+            raise InvalidArgumentException(msg)
+        if frame[0] == "/":
+            hint = frame.lstrip("/")
+            known = " (a known frame)" if hint in self._known else ""
+            msg = (
+                f'Invalid argument "{frame}" passed to {what}: tf2 frame ids cannot start '
+                f"with a '/'; use \"{hint}\"{known}"
+            )
+            raise InvalidArgumentException(msg)
+        if frame not in self._known:
+            raise self._unknown(frame, what)
+
+    def _unknown(self, frame: str, what: str) -> LookupException:
+        if not self._known:
+            msg = (
+                f'"{frame}" passed to {what} does not exist: the buffer holds no frames yet '
+                "(is a transform listener receiving /tf and /tf_static?)"
+            )
+            return LookupException(msg, frame=frame)
+        close = difflib.get_close_matches(frame, list(self._known), n=3, cutoff=0.6)
+        lowered = {k.lower(): k for k in self._known}
+        if frame.lower() in lowered and lowered[frame.lower()] not in close:
+            close.insert(0, lowered[frame.lower()])
+        hint = (
+            "closest known frames: " + ", ".join(f'"{c}"' for c in close)
+            if close
+            else f"known frames: {', '.join(sorted(self._known)[:12])}"
+            + (" ..." if len(self._known) > 12 else "")
+        )
+        msg = f'"{frame}" passed to {what} does not exist; {hint}'
+        return LookupException(msg, frame=frame, suggestions=close)
+
+    def _lookup(self, target: str, source: str, t: int) -> tuple[Pose7, int]:
+        if target == source:
+            self._validate_format(target, "lookup_transform argument target_frame")
+            if t == 0:
+                cache = self._caches.get(target)
+                t = cache.newest_ns if cache is not None else 0
+            return IDENTITY, t
+        self._validate(target, "lookup_transform argument target_frame")
+        self._validate(source, "lookup_transform argument source_frame")
+        if t == 0:
+            t = latest_common_time(self._caches, target, source)
+        return walk(self._caches, target, source, t, self._cache_time_ns), t
+
+    def _validate_format(self, frame: str, what: str) -> None:
+        if not frame or frame[0] == "/":
+            self._validate(frame, what)
+
+    def _lookup_full(
+        self, target: str, tt: int, source: str, ts: int, fixed: str
+    ) -> tuple[Pose7, int]:
+        self._validate(target, "lookup_transform argument target_frame")
+        self._validate(source, "lookup_transform argument source_frame")
+        self._validate(fixed, "lookup_transform argument fixed_frame")
+        fixed_source, _ = self._lookup(fixed, source, ts)
+        target_fixed, resolved = self._lookup(target, fixed, tt)
+        return _scalar.compose(target_fixed, fixed_source), resolved
+
+    def _check(self, target: str, source: str, t: int) -> tuple[bool, str]:
+        return self._probe(lambda: self._lookup(target, source, t))
+
+    def _check_full(
+        self, target: str, tt: int, source: str, ts: int, fixed: str
+    ) -> tuple[bool, str]:
+        return self._probe(lambda: self._lookup_full(target, tt, source, ts, fixed))
+
+    @staticmethod
+    def _probe(lookup: Callable[[], object]) -> tuple[bool, str]:
+        try:
+            lookup()
+        except TransformException as exc:
+            return False, str(exc)
+        return True, ""
+
+    def _wait(self, target: str, source: str, t: int, timeout_s: float) -> tuple[bool, str]:
+        return self._wait_for(lambda: self._lookup(target, source, t), timeout_s)
+
+    def _wait_full(
+        self, target: str, tt: int, source: str, ts: int, fixed: str, timeout_s: float
+    ) -> tuple[bool, str]:
+        return self._wait_for(lambda: self._lookup_full(target, tt, source, ts, fixed), timeout_s)
+
+    def _wait_for(self, lookup: Callable[[], object], timeout_s: float) -> tuple[bool, str]:
+        """Retry ``lookup`` on every insertion until it succeeds or ``timeout_s`` passes.
+
+        A malformed argument (InvalidArgumentException) cannot be cured by new data:
+        it is answered at once instead of after the whole timeout.
+        """
+        deadline = _time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                try:
+                    lookup()
+                except InvalidArgumentException as exc:
+                    return False, str(exc)
+                except TransformException as exc:
+                    remaining = deadline - _time.monotonic()
+                    if remaining <= 0.0:
+                        return False, str(exc)
+                    self._cond.wait(remaining)
+                else:
+                    return True, ""
