@@ -42,12 +42,13 @@ from visnav.graph.names import (
 from visnav.graph.parameters import Parameter, ParameterStore, SetParametersResult
 from visnav.graph.qos import (
     DurabilityPolicy,
+    HistoryPolicy,
     QoSProfile,
     ReliabilityPolicy,
     check_qos_compatibility,
     to_qos,
 )
-from visnav.msgs.serde import deserialize, msg_type_name, serialize, typestore
+from visnav.msgs.serde import CdrSerializer, deserialize, msg_type_name, typestore
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import Clock as ClockMsg
 
@@ -111,6 +112,8 @@ class Publisher(Generic[MsgT]):
         transient = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
         self.history: deque[Any] | None = deque(maxlen=qos.queue_limit) if transient else None
         self._zpub: Any = None
+        self._cdr = CdrSerializer(self.type_name)
+        self._zid = node.context.zid
         self.sequence = 0
 
     def link(self, targets: list[Subscription[Any]]) -> None:
@@ -138,10 +141,8 @@ class Publisher(Generic[MsgT]):
         self.node.context.deliver_local(self, msg)
         zpub = self._zpub
         if zpub is not None and zpub.has_subscribers:
-            att = encode_attachment(
-                self.sequence, time.time_ns(), self.entity_id, self.node.context.zid
-            )
-            zpub.put(serialize(msg), att)
+            att = encode_attachment(self.sequence, time.time_ns(), self.entity_id, self._zid)
+            zpub.put(self._cdr.serialize(msg), att)
 
     def local_info(self) -> MessageInfo:
         """The :class:`MessageInfo` of the message being delivered in-process."""
@@ -437,7 +438,11 @@ class Node:
         if z is not None:
             key = topic_key(self.context.domain, name, pub.type_name, _type_hash(pub.type_name))
             cache = qos.depth if qos.durability is DurabilityPolicy.TRANSIENT_LOCAL else None
-            pub._zpub = z.publisher(key, cache_depth=cache)
+            block = (
+                qos.history is HistoryPolicy.KEEP_ALL
+                and qos.reliability is ReliabilityPolicy.RELIABLE
+            )
+            pub._zpub = z.publisher(key, cache_depth=cache, block=block)
         self._announce(pub.entity_id, "MP", name, pub.type_name, qos)
         return pub
 

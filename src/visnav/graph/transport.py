@@ -30,11 +30,14 @@ from typing import Any
 
 import zenoh
 from zenoh import ext as zext
+from zenoh import shm as zshm
 
 from visnav.graph.errors import TransportError
 
 __all__ = [
     "ENV_CONNECT",
+    "SHM_POOL_BYTES",
+    "SHM_THRESHOLD",
     "ENV_DOMAIN",
     "ENV_LISTEN",
     "TransportConfig",
@@ -44,6 +47,10 @@ __all__ = [
     "resolve_domain",
 ]
 
+SHM_THRESHOLD = 64 * 1024
+"""Payloads this large or larger use shared memory."""
+SHM_POOL_BYTES = 64 * 1024 * 1024
+"""Size of each session's shared-memory pool."""
 ENV_DOMAIN = "VISNAV_DOMAIN"
 ENV_CONNECT = "VISNAV_CONNECT"
 ENV_LISTEN = "VISNAV_LISTEN"
@@ -138,14 +145,28 @@ class TransportConfig:
             "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
             # transient-local topics use zenoh-ext's advanced publisher, which needs timestamps
             "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
+            # large payloads go through shared memory between processes of one machine
+            "transport": {"shared_memory": {"enabled": True}},
         }
 
 
 class ZenohPublisher:
     """A Zenoh publisher that knows whether any remote subscriber matches."""
 
-    def __init__(self, session: zenoh.Session, key: str, *, cache_depth: int | None) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        key: str,
+        *,
+        cache_depth: int | None,
+        block: bool = False,
+        shm: Any = None,
+    ) -> None:
+        self._shm = shm
         self._matching = False
+        # As rmw_zenoh: block only for keep-all reliable topics, else drop under congestion
+        # (blocking puts of fresh buffers also cost ~8x throughput, measured in bench_graph).
+        cc = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
         self._pub: Any
         if cache_depth is not None:
             self._pub = zext.declare_advanced_publisher(
@@ -154,11 +175,14 @@ class ZenohPublisher:
                 cache=zext.CacheConfig(max_samples=cache_depth),
                 publisher_detection=True,
                 allowed_destination=zenoh.Locality.REMOTE,
+                congestion_control=cc,
             )
             self._matching = True
             self._listener = None
         else:
-            self._pub = session.declare_publisher(key, allowed_destination=zenoh.Locality.REMOTE)
+            self._pub = session.declare_publisher(
+                key, allowed_destination=zenoh.Locality.REMOTE, congestion_control=cc
+            )
             self._matching = bool(self._pub.matching_status.matching)
             self._listener = self._pub.declare_matching_listener(self._on_matching)
         self._always = cache_depth is not None
@@ -171,8 +195,22 @@ class ZenohPublisher:
         """True when a remote subscriber matches (always True for cached publishers)."""
         return self._always or self._matching
 
-    def put(self, payload: bytes, attachment: bytes | None = None) -> None:
-        """Send one payload (with an optional attachment)."""
+    def put(self, payload: bytes | bytearray, attachment: bytes | None = None) -> None:
+        """Send one payload (with an optional attachment).
+
+        Payloads of at least :data:`SHM_THRESHOLD` bytes are copied into a shared-memory
+        buffer when a provider is available: peers on this machine then map it instead of
+        receiving it through a socket (measured in ``bench/bench_graph.py``).
+        """
+        if self._shm is not None and len(payload) >= SHM_THRESHOLD:
+            try:
+                buf = self._shm.alloc(len(payload), policy=zshm.BlockOn(zshm.GarbageCollect()))
+            except Exception:  # noqa: BLE001 - fall back to the socket path
+                buf = None
+            if buf is not None:
+                buf[:] = payload
+                self._pub.put(buf, attachment=attachment)
+                return
         self._pub.put(payload, attachment=attachment)
 
     def close(self) -> None:
@@ -198,6 +236,8 @@ class ZenohTransport:
             raise TransportError(msg) from exc
         self._closed = False
         self._lock = threading.Lock()
+        self._shm: Any = None
+        self._shm_failed = False
         self._handles: list[Any] = []
 
     @property
@@ -210,9 +250,29 @@ class ZenohTransport:
         """This session's Zenoh id (hex)."""
         return str(self._session.zid())
 
-    def publisher(self, key: str, *, cache_depth: int | None = None) -> ZenohPublisher:
-        """Declare a publisher on ``key``; ``cache_depth`` keeps samples for late joiners."""
-        return ZenohPublisher(self._session, key, cache_depth=cache_depth)
+    def publisher(
+        self, key: str, *, cache_depth: int | None = None, block: bool = False
+    ) -> ZenohPublisher:
+        """Declare a publisher on ``key``.
+
+        Args:
+            key: the data key expression.
+            cache_depth: keep this many samples for late-joining subscribers (transient local).
+            block: block under congestion instead of dropping (keep-all reliable topics).
+        """
+        return ZenohPublisher(
+            self._session, key, cache_depth=cache_depth, block=block, shm=self._shm_provider()
+        )
+
+    def _shm_provider(self) -> Any:
+        """The session's shared-memory provider (made on first use; None if unavailable)."""
+        with self._lock:
+            if self._shm is None and not self._shm_failed:
+                try:
+                    self._shm = zshm.ShmProvider.default_backend(SHM_POOL_BYTES)
+                except Exception:  # noqa: BLE001 - no shared memory: sockets only
+                    self._shm_failed = True
+            return self._shm
 
     def subscriber(
         self,
