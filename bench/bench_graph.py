@@ -95,7 +95,7 @@ def _sender(mode: str, domain: int, n: int) -> None:
         p._zpub._pub.congestion_control  # noqa: B018 - ensure declared
         while p.get_subscription_count() < 1:
             ctx.spin_once(0.01)
-        while not p._zpub.has_subscribers:  # noqa: SLF001
+        while not p._zpub.has_subscribers:
             time.sleep(0.01)
         time.sleep(0.3)
         img = _image()

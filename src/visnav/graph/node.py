@@ -402,7 +402,7 @@ class Node:
             topic=topic,
             type_name=type_name,
             type_hash=_type_hash(type_name) if type_name else None,
-            qos=(qos.reliability.value, qos.durability.value, qos.depth) if qos else None,
+            qos=qos,
         )
         z = self.context.zenoh
         handle = z.token(key) if z is not None else None
