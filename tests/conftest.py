@@ -4,16 +4,14 @@ from __future__ import annotations
 
 import itertools
 import os
-from collections.abc import Iterator
-
 import pytest
 
 _counter = itertools.count()
 
 
 @pytest.fixture
-def domain(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+def domain(monkeypatch: pytest.MonkeyPatch) -> int:
     """A graph domain id no other test (or test run) uses; also set as VISNAV_DOMAIN."""
     value = 1_000_000 + (os.getpid() % 20_000) * 1000 + next(_counter) % 1000
     monkeypatch.setenv("VISNAV_DOMAIN", str(value))
-    yield value
+    return value

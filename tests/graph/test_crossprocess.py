@@ -107,8 +107,16 @@ def test_cli_list_info_echo(domain: int, talker: subprocess.Popen[str]) -> None:
     bad = _cli(domain, "topic", "echo", "/robot/chater", "--once")
     assert bad.returncode == 1
     assert bad.stderr.strip().splitlines() == [
-        f"error: topic '/robot/chater' is not in the graph (domain {domain}); did you mean /robot/chatter?"
+        f"error: topic '/robot/chater' is not in the graph (domain {domain}); "
+        "did you mean /robot/chatter?"
     ]
+    bw = _cli(domain, "topic", "bw", "/image", "--duration", "2.5")
+    assert "KB/s from" in bw.stdout, bw.stderr
+    assert "Message size mean: 144 B" not in bw.stdout  # CDR adds header/encoding bytes
+    delay = _cli(domain, "topic", "delay", "/image", "--duration", "2.5")
+    delays = [float(x.split()[-1]) for x in delay.stdout.splitlines() if "average delay" in x]
+    assert delays
+    assert 0.0 <= delays[-1] < 0.5
     hz = _cli(domain, "topic", "hz", "/robot/chatter", "--duration", "2.5")
     rates = [float(line.split()[-1]) for line in hz.stdout.splitlines() if "average rate" in line]
     assert rates

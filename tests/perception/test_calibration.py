@@ -1,0 +1,481 @@
+"""Chessboard calibration on synthetic views with a known camera, and the ROS YAML format.
+
+The views are rendered exactly: for every pixel of the distorted image the ray is
+undistorted with the true K/D and intersected with the board plane, and the
+board texture is sampled there.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from visnav.msgs import CameraInfo, Header, Time
+from visnav.msgs.image import numpy_to_image
+from visnav.perception.calibration import (
+    CalibrationError,
+    calibrate,
+    calibrate_from_images,
+    find_chessboard,
+    load_calibration_yaml,
+    parse_pattern,
+    read_camera_info_yaml,
+    resolve_camera_info_url,
+    select_views,
+    write_camera_info_yaml,
+)
+from visnav.perception.camera_info_yaml import camera_info_from_matrices
+from visnav.perception.image_transport import compress
+
+SIZE = (480, 360)  # width, height
+K_TRUE = np.array([[400.0, 0.0, 236.0], [0.0, 405.0, 178.0], [0.0, 0.0, 1.0]])
+D_TRUE = np.array([-0.18, 0.04, 0.0008, -0.0005, 0.0])
+PATTERN = (9, 6)
+SQUARE = 0.025
+
+
+def render_view(
+    rvec: np.ndarray,
+    center: np.ndarray,
+    *,
+    k: np.ndarray = K_TRUE,
+    d: np.ndarray = D_TRUE,
+    pattern: tuple[int, int] = PATTERN,
+    square: float = SQUARE,
+    size: tuple[int, int] = SIZE,
+    px_per_square: int = 32,
+) -> np.ndarray:
+    """Render a chessboard whose centre is at ``center`` (camera frame, m), rotated by rvec."""
+    cols, rows = pattern
+    margin = 1  # white squares around the (cols + 1) x (rows + 1) checkerboard
+    nx, ny = cols + 1 + 2 * margin, rows + 1 + 2 * margin
+    tex = np.full((ny * px_per_square, nx * px_per_square), 235, np.uint8)
+    for i in range(rows + 1):
+        for j in range(cols + 1):
+            if (i + j) % 2 == 0:
+                y0, x0 = (i + margin) * px_per_square, (j + margin) * px_per_square
+                tex[y0 : y0 + px_per_square, x0 : x0 + px_per_square] = 20
+    tex = cv2.GaussianBlur(tex, (0, 0), 0.8)
+    rot, _ = cv2.Rodrigues(np.asarray(rvec, np.float64))
+    board_center = np.array([(cols - 1) / 2 * square, (rows - 1) / 2 * square, 0.0])
+    t = np.asarray(center, np.float64) - rot @ board_center
+    w, h = size
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    pix = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+    norm = cv2.undistortPoints(pix, k, d, criteria=criteria).reshape(-1, 2)
+    homog = np.column_stack([rot[:, 0], rot[:, 1], t])  # board (x, y, 1) -> camera ray
+    board = np.linalg.solve(homog, np.column_stack([norm, np.ones(len(norm))]).T).T
+    bx, by = board[:, 0] / board[:, 2], board[:, 1] / board[:, 2]
+    map_x = (bx / square + margin + 1) * px_per_square - 0.5
+    map_y = (by / square + margin + 1) * px_per_square - 0.5
+    img = cv2.remap(
+        tex,
+        map_x.reshape(h, w).astype(np.float32),
+        map_y.reshape(h, w).astype(np.float32),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=235,
+    )
+    return np.asarray(img)
+
+
+POSES = [
+    ((0.0, 0.0, 0.0), (0.0, 0.0, 0.55)),
+    ((0.35, 0.0, 0.0), (-0.05, 0.03, 0.6)),
+    ((-0.35, 0.0, 0.05), (0.05, -0.03, 0.6)),
+    ((0.0, 0.4, 0.0), (0.06, 0.02, 0.6)),
+    ((0.0, -0.4, -0.05), (-0.06, -0.02, 0.6)),
+    ((0.3, 0.3, 0.1), (0.08, 0.06, 0.7)),
+    ((-0.3, -0.3, -0.1), (-0.08, -0.06, 0.7)),
+    ((0.25, -0.3, 0.2), (0.1, -0.07, 0.75)),
+    ((-0.25, 0.3, -0.2), (-0.1, 0.07, 0.75)),
+    ((0.1, 0.1, 0.5), (0.0, 0.0, 0.5)),
+    ((0.2, -0.1, -0.3), (0.09, 0.08, 0.65)),
+    ((-0.15, 0.25, 0.3), (-0.09, -0.08, 0.65)),
+]
+
+
+@functools.cache
+def views() -> tuple[np.ndarray, ...]:
+    return tuple(render_view(np.array(r), np.array(c)) for r, c in POSES)
+
+
+@pytest.fixture
+def image_dir(tmp_path: Path) -> Path:
+    folder = tmp_path / "calib"
+    folder.mkdir()
+    for i, img in enumerate(views()):
+        assert cv2.imwrite(str(folder / f"view_{i:02d}.png"), img)
+    return folder
+
+
+def test_rendered_corners_match_projection() -> None:
+    """The renderer is exact: detected corners sit where cv2.projectPoints puts them."""
+    rvec, center = np.array(POSES[5][0]), np.array(POSES[5][1])
+    corners, reason = find_chessboard(render_view(rvec, center), PATTERN)
+    assert corners is not None, reason
+    rot, _ = cv2.Rodrigues(rvec)
+    board_center = np.array([4 * SQUARE, 2.5 * SQUARE, 0.0])
+    grid = np.zeros((54, 3))
+    grid[:, :2] = np.mgrid[0:9, 0:6].T.reshape(-1, 2) * SQUARE
+    projected, _ = cv2.projectPoints(grid, rvec, center - rot @ board_center, K_TRUE, D_TRUE)
+    projected = projected.reshape(-1, 2)
+    # Detection may start from the opposite corner (the board is symmetric under 180 deg).
+    err = min(np.abs(corners - projected).max(), np.abs(corners[::-1] - projected).max())
+    assert err < 0.15
+
+
+def test_calibrate_directory_recovers_camera_and_writes_yaml(
+    image_dir: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out" / "camera.yaml"
+    result = calibrate(
+        images=image_dir, pattern="9x6", square=SQUARE, output=out, camera_name="test_cam"
+    )
+    k = result.K
+    assert abs(k[0, 0] - 400.0) / 400.0 < 0.005
+    assert abs(k[1, 1] - 405.0) / 405.0 < 0.005
+    assert abs(k[0, 2] - 236.0) < 1.5
+    assert abs(k[1, 2] - 178.0) < 1.5
+    assert abs(result.D[0] - D_TRUE[0]) < 0.02
+    assert result.D[4] == 0.0  # k3 fixed, as ROS's default --k-coefficients 2
+    assert result.rms < 0.2
+    assert len(result.per_image_errors) == len(POSES)
+    assert all(err < 0.3 for _, err in result.per_image_errors)
+    assert result.image_size == SIZE
+    np.testing.assert_array_equal(result.R, np.eye(3))
+    assert result.P[:, 3].tolist() == [0.0, 0.0, 0.0]
+    assert "RMS reprojection error" in result.summary()
+    assert "view_03.png" in result.summary()
+    # The YAML reads back to the same numbers.
+    name, info = load_calibration_yaml(out)
+    assert name == "test_cam"
+    assert (info.width, info.height) == SIZE
+    np.testing.assert_array_equal(info.k, result.K.ravel())
+    np.testing.assert_array_equal(info.d, result.D)
+    np.testing.assert_array_equal(info.p, result.P.ravel())
+
+
+def test_arrays_and_image_messages_as_input() -> None:
+    frames = [numpy_to_image(v, "mono8") for v in views()[:6]]
+    frames_bgr = [("bgr", cv2.cvtColor(v, cv2.COLOR_GRAY2BGR)) for v in views()[6:]]
+    result = calibrate_from_images([*frames, *frames_bgr], PATTERN, SQUARE)
+    assert abs(result.K[0, 0] - 400.0) / 400.0 < 0.01
+
+
+def test_rational_polynomial_and_fixed_principal_point() -> None:
+    result = calibrate_from_images(
+        list(views()), PATTERN, SQUARE, distortion_model="rational_polynomial", k_coefficients=3
+    )
+    assert result.distortion_model == "rational_polynomial"
+    assert result.D.shape == (8,)
+    assert result.D[5:].tolist() == [0.0, 0.0, 0.0]
+    fixed = calibrate_from_images(list(views()), PATTERN, SQUARE, fix_principal_point=True)
+    assert fixed.K[0, 2] == pytest.approx((SIZE[0] - 1) / 2, abs=0.51)
+    assert fixed.K[1, 2] == pytest.approx((SIZE[1] - 1) / 2, abs=0.51)
+
+
+def test_board_not_found_warns_and_too_few_views(caplog: pytest.LogCaptureFixture) -> None:
+    blank = np.full(SIZE[::-1], 128, np.uint8)
+    images: list[Any] = [("blank.png", blank), *[(f"v{i}", v) for i, v in enumerate(views()[:4])]]
+    with caplog.at_level(logging.WARNING), pytest.raises(CalibrationError) as info:
+        calibrate_from_images(images, PATTERN, SQUARE)
+    assert "blank.png: chessboard 9x6 not found; image skipped" in caplog.text
+    assert "only 4 of 5 images show the full 9x6 chessboard: at least 5 views" in str(info.value)
+
+
+def test_wrong_pattern_finds_nothing() -> None:
+    with pytest.raises(CalibrationError, match="only 0 of 3 images"):
+        calibrate_from_images(list(views()[:3]), "8x6", SQUARE, min_views=3)
+
+
+def test_board_cut_off_by_the_border_is_rejected() -> None:
+    img = render_view(np.zeros(3), np.array([0.18, 0.0, 0.55]))
+    corners, reason = find_chessboard(img, PATTERN)
+    assert corners is None
+    assert reason in (
+        "chessboard 9x6 not found",
+        "chessboard touches the image border (partly outside the view)",
+    )
+
+
+def test_unreadable_and_missing_files(tmp_path: Path) -> None:
+    bad = tmp_path / "broken.png"
+    bad.write_text("not an image")
+    with pytest.raises(CalibrationError, match=r"broken\.png: cannot read it as an image"):
+        calibrate_from_images([bad], PATTERN, SQUARE)
+    with pytest.raises(CalibrationError, match=r"nope\.png: no such image file"):
+        calibrate_from_images([tmp_path / "nope.png"], PATTERN, SQUARE)
+    with pytest.raises(CalibrationError, match="no image files"):
+        calibrate(images=tmp_path / "empty_dir_missing", pattern=PATTERN)
+
+
+def test_images_of_different_sizes(tmp_path: Path) -> None:
+    small = np.zeros((100, 100), np.uint8)
+    with pytest.raises(CalibrationError, match="b: image is 100x100 but a is 480x360"):
+        calibrate_from_images([("a", views()[0]), ("b", small)], PATTERN, SQUARE)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"pattern": "9by6"}, "pattern is '9by6'"),
+        ({"pattern": (1, 6)}, "both >= 2"),
+        ({"square": 0}, "square is 0"),
+        ({"distortion_model": "equidistant"}, "distortion_model is 'equidistant'"),
+        ({"k_coefficients": 4}, "plumb_bob estimates 0 to 3"),
+        ({"alpha": 2.0}, "alpha is 2.0"),
+    ],
+)
+def test_bad_parameters(kwargs: dict[str, Any], match: str) -> None:
+    args: dict[str, Any] = {"pattern": PATTERN, "square": SQUARE, **kwargs}
+    with pytest.raises(CalibrationError, match=match):
+        calibrate_from_images([views()[0]], **args)
+
+
+def test_parse_pattern() -> None:
+    assert parse_pattern("9x6") == (9, 6)
+    assert parse_pattern(" 8 X 5 ") == (8, 5)
+    assert parse_pattern([7, 4]) == (7, 4)
+
+
+def test_calibrate_needs_exactly_one_source(image_dir: Path) -> None:
+    with pytest.raises(CalibrationError, match="exactly one image source"):
+        calibrate()
+    with pytest.raises(CalibrationError, match="exactly one image source"):
+        calibrate(images=image_dir, bag="x.bag", topic="t")
+    with pytest.raises(CalibrationError, match="needs node= and spin_until="):
+        calibrate(topic="camera/image_raw")
+
+
+# ------------------------------------------------------------ bag and topic
+
+
+def test_calibrate_from_bag_selects_distinct_views(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Writer
+
+    from visnav.msgs.serde import typestore
+
+    store = typestore()
+    bag = tmp_path / "calib_bag"
+    frames = [v for v in views() for _ in range(3)]  # every pose three times
+    with Writer(bag, version=9) as writer:
+        raw = writer.add_connection("/cam/image_raw", "sensor_msgs/msg/Image", typestore=store)
+        comp = writer.add_connection(
+            "/cam/image_raw/compressed", "sensor_msgs/msg/CompressedImage", typestore=store
+        )
+        for i, frame in enumerate(frames):
+            header = Header(stamp=Time(sec=i, nanosec=0), frame_id="cam")
+            img = numpy_to_image(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), "bgr8", header=header)
+            writer.write(raw, i * 10**9, store.serialize_cdr(img, "sensor_msgs/msg/Image"))
+            msg = compress(img, format="png")
+            writer.write(
+                comp, i * 10**9, store.serialize_cdr(msg, "sensor_msgs/msg/CompressedImage")
+            )
+    result = calibrate(bag=bag, topic="/cam/image_raw", pattern=PATTERN, square=SQUARE)
+    assert len(result.per_image_errors) == len(POSES)  # duplicates thinned out
+    assert result.per_image_errors[0][0] == "/cam/image_raw@0.000 s"
+    assert abs(result.K[0, 0] - 400.0) / 400.0 < 0.005
+    compressed = calibrate(bag=bag, topic="/cam/image_raw/compressed", pattern=PATTERN, max_views=8)
+    assert len(compressed.per_image_errors) == 8
+    with pytest.raises(CalibrationError, match="no Image/CompressedImage topic '/other'"):
+        calibrate(bag=bag, topic="/other", pattern=PATTERN)
+
+
+def test_calibrate_from_bag_missing(tmp_path: Path) -> None:
+    with pytest.raises(CalibrationError, match="cannot open the bag"):
+        calibrate(bag=tmp_path / "missing_bag", topic="/cam/image_raw")
+
+
+def test_select_views_thins_duplicates() -> None:
+    frames = [(f"f{i}", v) for i, v in enumerate([views()[0]] * 5 + [views()[3]])]
+    kept = select_views(frames, PATTERN)
+    assert [name for name, _ in kept] == ["f0", "f5"]
+
+
+class FakeNode:
+    def __init__(self) -> None:
+        self.subs: dict[str, Callable[[Any], None]] = {}
+        self.destroyed: list[Any] = []
+
+    def create_subscription(
+        self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos: Any
+    ) -> str:
+        self.subs[topic] = callback
+        return topic
+
+    def destroy_subscription(self, sub: Any) -> None:
+        self.destroyed.append(sub)
+
+
+def test_calibrate_from_live_topic() -> None:
+    node = FakeNode()
+    delivered = []
+
+    def spin_until(predicate: Callable[[], bool], timeout_s: float) -> bool:
+        callback = node.subs["cam/image_raw/compressed"]
+        for i, frame in enumerate(views()):
+            if predicate():
+                return True
+            img = numpy_to_image(
+                frame, "mono8", header=Header(stamp=Time(sec=i, nanosec=5), frame_id="c")
+            )
+            callback(compress(img, format="png"))
+            delivered.append(i)
+        return predicate()
+
+    result = calibrate(
+        topic="cam/image_raw/compressed",
+        node=node,
+        spin_until=spin_until,
+        pattern=PATTERN,
+        max_views=10,
+    )
+    assert len(result.per_image_errors) == 10
+    assert delivered == list(range(10))  # stopped once max_views were collected
+    assert result.per_image_errors[0][0] == "cam/image_raw/compressed@0.000000005"
+    assert node.destroyed == ["cam/image_raw/compressed"]
+
+
+# --------------------------------------------------------------------- YAML
+
+ROS_SAMPLE = """\
+image_width: 640
+image_height: 480
+camera_name: narrow_stereo
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [ 612.3456,    0.     ,  318.9021,
+            0.     ,  611.8765,  241.2468,
+            0.     ,    0.     ,    1.     ]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [0.101203, -0.223344, 0.000812, -0.001107, 0.000000]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [ 1.,  0.,  0.,
+          0.,  1.,  0.,
+          0.,  0.,  1.]
+projection_matrix:
+  rows: 3
+  cols: 4
+  data: [ 620.1111,    0.     ,  319.5555,    0.     ,
+            0.     ,  622.2222,  240.7777,    0.     ,
+            0.     ,    0.     ,    1.     ,    0.     ]
+"""
+
+
+def test_reads_ros_written_yaml(tmp_path: Path) -> None:
+    path = tmp_path / "ost.yaml"
+    path.write_text(ROS_SAMPLE)
+    name, info = load_calibration_yaml(path)
+    assert name == "narrow_stereo"
+    assert (info.width, info.height, info.distortion_model) == (640, 480, "plumb_bob")
+    assert info.k.tolist() == [612.3456, 0, 318.9021, 0, 611.8765, 241.2468, 0, 0, 1]
+    assert info.d.tolist() == [0.101203, -0.223344, 0.000812, -0.001107, 0.0]
+    assert info.r.tolist() == np.eye(3).ravel().tolist()
+    assert info.p[[0, 2, 5, 6, 10]].tolist() == [620.1111, 319.5555, 622.2222, 240.7777, 1.0]
+    assert (info.binning_x, info.binning_y, info.roi.width) == (0, 0, 0)
+    assert isinstance(read_camera_info_yaml(f"file://{path}"), CameraInfo)
+
+
+def test_yaml_round_trip_exact(tmp_path: Path) -> None:
+    rng = np.random.default_rng(7)
+    info = camera_info_from_matrices(
+        (1280, 720),
+        "rational_polynomial",
+        rng.normal(size=8) * 0.1,
+        [[901.123456789, 0, 640.5], [0, 899.987654321, 360.25], [0, 0, 1]],
+        np.eye(3),
+        [[905.0, 0, 641.0, 0], [0, 905.0, 361.0, 0], [0, 0, 1, 0]],
+    )
+    path = write_camera_info_yaml(tmp_path / "a" / "b.yaml", info, camera_name="front camera: 1")
+    text = path.read_text()
+    assert text.startswith("image_width: 1280\nimage_height: 720\n")
+    assert "distortion_coefficients:\n  rows: 1\n  cols: 8\n  data: [" in text
+    name, back = load_calibration_yaml(path)
+    assert name == "front camera: 1"
+    assert back.distortion_model == "rational_polynomial"
+    for field in ("d", "k", "r", "p"):
+        np.testing.assert_array_equal(getattr(back, field), getattr(info, field))  # bit exact
+
+
+def test_yaml_defaults_like_ros(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    text = ROS_SAMPLE.replace("camera_name: narrow_stereo\n", "").replace(
+        "distortion_model: plumb_bob\n", ""
+    )
+    path = tmp_path / "old.yaml"
+    path.write_text(text)
+    with caplog.at_level(logging.WARNING):
+        name, info = load_calibration_yaml(path)
+    assert name == "unknown"
+    assert info.distortion_model == "plumb_bob"
+    assert "no distortion_model; assuming plumb_bob" in caplog.text
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (
+            lambda t: t.replace("projection_matrix:", "projection_matrixx:"),
+            "missing field 'projection_matrix'",
+        ),
+        (lambda t: t.replace("image_width: 640\n", ""), "missing field 'image_width'"),
+        (
+            lambda t: t.replace("rows: 3\n  cols: 4", "rows: 4\n  cols: 3"),
+            "projection_matrix is 4x3: expected 3x4",
+        ),
+        (
+            lambda t: t.replace("0.000000]", "0.000000, 0.5]"),
+            r"distortion_coefficients\.data has 6 values",
+        ),
+        (lambda t: t.replace("image_height: 480", "image_height: tall"), "image_height is 'tall'"),
+        (lambda t: t.replace("data: [0.101203", "data: [abc"), "holds a non-number"),
+        (lambda t: "just a string", "expected a YAML mapping"),
+        (lambda t: "a: [", "not valid YAML"),
+    ],
+)
+def test_yaml_errors_name_file_and_field(
+    tmp_path: Path, edit: Callable[[str], str], match: str
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(edit(ROS_SAMPLE))
+    with pytest.raises(CalibrationError, match=match) as info:
+        read_camera_info_yaml(path)
+    assert str(path) in str(info.value)
+
+
+def test_unreadable_yaml(tmp_path: Path) -> None:
+    with pytest.raises(CalibrationError, match="cannot read the calibration file"):
+        read_camera_info_yaml(tmp_path / "missing.yaml")
+    with pytest.raises(CalibrationError, match="INI calibration files are not supported"):
+        read_camera_info_yaml(tmp_path / "cal.ini")
+
+
+def test_resolve_camera_info_url(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("ROS_HOME", str(tmp_path))
+    assert resolve_camera_info_url("file:///etc/cam.yaml") == Path("/etc/cam.yaml")
+    assert resolve_camera_info_url("calib/cam.yaml") == Path("calib/cam.yaml")
+    assert resolve_camera_info_url("", camera_name="left") == tmp_path / "camera_info" / "left.yaml"
+    assert (
+        resolve_camera_info_url("file://${ROS_HOME}/${NAME}.yaml", camera_name="c")
+        == tmp_path / "c.yaml"
+    )
+    with pytest.raises(CalibrationError, match="package:// URLs need a ROS package index"):
+        resolve_camera_info_url("package://my_pkg/calib.yaml")
+    with pytest.raises(CalibrationError, match="unsupported scheme"):
+        resolve_camera_info_url("http://host/cam.yaml")
+    with pytest.raises(CalibrationError, match="pass camera_name"):
+        resolve_camera_info_url("file:///x/${NAME}.yaml")

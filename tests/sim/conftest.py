@@ -1,0 +1,16 @@
+"""Fixtures for the simulator tests: headless OpenGL chosen per test, not at import."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pytest
+
+
+@pytest.fixture
+def mujoco_gl(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+    """Select EGL for MuJoCo rendering (unless the environment already chose a backend)."""
+    if os.environ.get("MUJOCO_GL", "").strip().lower() not in ("egl", "osmesa"):
+        monkeypatch.setenv("MUJOCO_GL", "egl")
+    yield os.environ["MUJOCO_GL"]
