@@ -49,8 +49,20 @@ from visnav.perception.image_proc import (
     to_color,
     to_mono,
 )
+from visnav.perception.nodes import (
+    ConvertMetricNode,
+    DepthImageToLaserScanNode,
+    ImageProcNode,
+    PointCloudXyzNode,
+    PointCloudXyzrgbNode,
+)
 
 __all__ = [
+    "ConvertMetricNode",
+    "DepthImageToLaserScanNode",
+    "ImageProcNode",
+    "PointCloudXyzNode",
+    "PointCloudXyzrgbNode",
     "DEBAYER_BILINEAR",
     "DEBAYER_EDGE_AWARE",
     "DEBAYER_EDGE_AWARE_WEIGHTED",
