@@ -346,10 +346,13 @@ def test_compressed_depth_quantisation_property(depth: np.ndarray, quantization:
     out = image_to_numpy(
         decompress_depth(compress_depth(image(depth, "32FC1"), depth_quantization=quantization))
     )
-    a, _ = depth_quantization_params(10.0, quantization)
+    a, b = depth_quantization_params(10.0, quantization)
     d = depth.astype(np.float64)
-    assert np.isfinite(out).all()
-    assert (np.abs(out - d) <= d**2 / (a - d) + 1e-4 * d).all()
+    nearest = a / (65536 - b)  # closer depths need an inverse depth above 65535
+    assert np.isnan(out[d < 0.999 * nearest]).all()
+    ok = d > 1.001 * nearest
+    assert np.isfinite(out[ok]).all()
+    assert (np.abs(out[ok] - d[ok]) <= d[ok] ** 2 / (a - d[ok]) + 1e-4 * d[ok]).all()
 
 
 def test_too_close_depth_is_invalid_not_wrapped() -> None:
@@ -541,3 +544,25 @@ def test_subscription_explicit_transport_depth_and_raw() -> None:
     np.testing.assert_array_equal(image_to_numpy(got[1]), smooth_rgb()[..., ::-1])
     with pytest.raises(ImageTransportError, match="transport 'theora'"):
         image_transport_subscription(node, "cam/image_raw/theora", got.append)
+
+
+# -------------------------------------------------------------- real graph
+
+
+def test_publisher_and_subscription_on_the_graph() -> None:
+    from visnav.graph import Context, Node
+
+    with Context(transport="local") as ctx:
+        node = Node("camera", namespace="/cam", context=ctx)
+        pub = ImageTransportPublisher(node, "image_raw", 5, ("raw", "compressed"), format="png")
+        raw_in: list[Image] = []
+        png_in: list[Image] = []
+        image_transport_subscription(node, "image_raw", raw_in.append, 5)
+        image_transport_subscription(node, "/cam/image_raw/compressed", png_in.append, 5)
+        rgb = smooth_rgb()
+        pub.publish(image(rgb, "rgb8"))
+        ctx.spin_until(lambda: bool(raw_in and png_in), 2.0)
+        assert png_in[0].encoding == "rgb8"
+        assert png_in[0].header.frame_id == "camera_optical"
+        np.testing.assert_array_equal(image_to_numpy(png_in[0]), rgb)
+        np.testing.assert_array_equal(image_to_numpy(raw_in[0]), rgb)

@@ -6,6 +6,19 @@ in and out; the graph nodes that wire them to topics live next to them.
 
 from __future__ import annotations
 
+from visnav.perception.calibration import (
+    CalibrationError,
+    CalibrationResult,
+    calibrate,
+    calibrate_from_images,
+    find_chessboard,
+    load_calibration_yaml,
+    parse_pattern,
+    read_camera_info_yaml,
+    resolve_camera_info_url,
+    select_views,
+    write_camera_info_yaml,
+)
 from visnav.perception.camera_model import (
     DISTORTION_MODELS,
     EQUIDISTANT,
@@ -49,6 +62,22 @@ from visnav.perception.image_proc import (
     to_color,
     to_mono,
 )
+from visnav.perception.image_transport import (
+    COMPRESSED_DEPTH_HEADER,
+    KNOWN_TRANSPORTS,
+    SUPPORTED_TRANSPORTS,
+    ImageTransportError,
+    ImageTransportPublisher,
+    compress,
+    compress_depth,
+    convert_encoding,
+    decompress,
+    decompress_depth,
+    depth_quantization_params,
+    image_transport_subscription,
+    split_transport_topic,
+    transport_topic,
+)
 from visnav.perception.nodes import (
     ConvertMetricNode,
     DepthImageToLaserScanNode,
@@ -58,6 +87,31 @@ from visnav.perception.nodes import (
 )
 
 __all__ = [
+    "CalibrationError",
+    "CalibrationResult",
+    "calibrate",
+    "calibrate_from_images",
+    "find_chessboard",
+    "load_calibration_yaml",
+    "parse_pattern",
+    "read_camera_info_yaml",
+    "resolve_camera_info_url",
+    "select_views",
+    "write_camera_info_yaml",
+    "COMPRESSED_DEPTH_HEADER",
+    "KNOWN_TRANSPORTS",
+    "SUPPORTED_TRANSPORTS",
+    "ImageTransportError",
+    "ImageTransportPublisher",
+    "compress",
+    "compress_depth",
+    "convert_encoding",
+    "decompress",
+    "decompress_depth",
+    "depth_quantization_params",
+    "image_transport_subscription",
+    "split_transport_topic",
+    "transport_topic",
     "ConvertMetricNode",
     "DepthImageToLaserScanNode",
     "ImageProcNode",

@@ -54,7 +54,7 @@ from visnav.msgs.image import (
     num_channels,
     numpy_to_image,
 )
-from visnav.msgs.types import CompressedImage, Header, Image
+from visnav.msgs.types import CompressedImage, Header, Image, Time
 from visnav.perception.errors import PerceptionError
 
 __all__ = [
@@ -247,7 +247,8 @@ def _encode(ext: str, array: NDArray[Any], params: list[int], what: str) -> NDAr
 
 
 def _copy_header(header: Header) -> Header:
-    return Header(stamp=header.stamp, frame_id=header.frame_id)
+    stamp = Time(sec=int(header.stamp.sec), nanosec=int(header.stamp.nanosec))
+    return Header(stamp=stamp, frame_id=header.frame_id)
 
 
 def compress(
