@@ -531,3 +531,42 @@ def test_calibrate_from_a_topic_on_the_graph() -> None:
         )
     assert len(result.per_image_errors) == 8
     assert abs(result.K[0, 0] - 400.0) / 400.0 < 0.01
+
+
+def test_cli_calibrate_directory(image_dir: Path, tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    out_yaml = tmp_path / "cam.yaml"
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "visnav.cli.main",
+            "calibrate",
+            "--images",
+            str(image_dir),
+            "--pattern",
+            "9x6",
+            "--square",
+            "0.025",
+            "-o",
+            str(out_yaml),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "RMS" in run.stdout or "rms" in run.stdout
+    assert out_yaml.exists()
+    missing = subprocess.run(
+        [sys.executable, "-m", "visnav.cli.main", "calibrate", "--pattern", "9x6"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert missing.returncode == 1
+    assert missing.stderr.startswith("error: visnav calibrate needs a source")

@@ -42,7 +42,8 @@ def bad(gazebo: str) -> str:
     with pytest.raises(RobotDescriptionError) as info:
         extensions(gazebo)
     text = str(info.value)
-    assert text.startswith("bot.urdf:") and "Fix:" in text
+    assert text.startswith("bot.urdf:")
+    assert "Fix:" in text
     return text
 
 
@@ -110,17 +111,20 @@ def test_ros2_camera_topics_k_and_frame() -> None:
     ext = extensions(CAMERA_ROS2)
     assert ext.warnings == ()
     (cam,) = ext.cameras
-    assert cam.ros_version == 2 and cam.kind == "camera"
+    assert cam.ros_version == 2
+    assert cam.kind == "camera"
     assert cam.image_topic == "/demo_cam/mycamera/image_demo"
     assert cam.camera_info_topic == "/demo_cam/mycamera/camera_info"
-    assert cam.depth_topic is None and cam.points_topic is None
+    assert cam.depth_topic is None
+    assert cam.points_topic is None
     assert cam.frame_id == "camera_link"  # no <frame_name>: the sensor's link
     assert (cam.width, cam.height, cam.update_rate) == (640, 480, 30.0)
     assert cam.encoding == "rgb8"
     focal = 640 / (2 * math.tan(1.3962634 / 2))
-    assert cam.fx == pytest.approx(focal) and cam.fy == pytest.approx(focal)
-    assert (cam.cx, cam.cy) == (320.5, 240.5)  # gazebo_ros_camera: (w + 1) / 2
-    assert cam.k() == pytest.approx((focal, 0, 320.5, 0, focal, 240.5, 0, 0, 1))
+    assert cam.fx == pytest.approx(focal)
+    assert cam.fy == pytest.approx(focal)
+    assert (cam.cx, cam.cy) == (320.0, 240.0)  # issue 3: width / 2 (Gazebo: (w + 1) / 2)
+    assert cam.k() == pytest.approx((focal, 0, 320.0, 0, focal, 240.0, 0, 0, 1))
     assert cam.p()[3] == pytest.approx(-focal * 0.07)
     assert cam.distortion.d == (-0.25, 0.12, -0.00028, -0.00005, 0.0)  # k1 k2 p1 p2 k3
     assert cam.noise.stddev == 0.007
@@ -135,8 +139,10 @@ def test_ros2_camera_defaults_to_sensor_name() -> None:
         <frame_name>camera_optical_frame</frame_name></plugin></sensor></gazebo>"""
     )
     (cam,) = ext.cameras
-    assert cam.image_topic == "/cam1/image_raw" and cam.camera_info_topic == "/cam1/camera_info"
-    assert cam.frame_id == "camera_optical_frame" and cam.encoding == "bgr8"
+    assert cam.image_topic == "/cam1/image_raw"
+    assert cam.camera_info_topic == "/cam1/camera_info"
+    assert cam.frame_id == "camera_optical_frame"
+    assert cam.encoding == "bgr8"
     assert cam.hfov == pytest.approx(1.047)
 
 
@@ -177,14 +183,15 @@ def test_ros1_camera_spellings() -> None:
     assert cam.camera_info_topic == "/rrbot/camera1/camera_info"
     assert cam.frame_id == "camera_link_optical"
     assert cam.encoding == "mono8"
-    assert (cam.cx, cam.cy) == (400.5, 400.5)
+    assert (cam.cx, cam.cy) == (400.0, 400.0)
     assert cam.distortion.k1 == 0.01
 
 
 def test_ros1_robot_namespace_prefixes_topics_and_frame() -> None:
     ext = extensions(
-        CAMERA_ROS1.replace("<alwaysOn>", "<robotNamespace>/bot1</robotNamespace><alwaysOn>")
-        .replace("<imageTopicName>image_raw", "<imageTopicName>/abs/image")
+        CAMERA_ROS1.replace(
+            "<alwaysOn>", "<robotNamespace>/bot1</robotNamespace><alwaysOn>"
+        ).replace("<imageTopicName>image_raw", "<imageTopicName>/abs/image")
     )
     (cam,) = ext.cameras
     assert cam.image_topic == "/abs/image"
@@ -222,16 +229,18 @@ def test_ros2_depth_camera_topics() -> None:
     ext = extensions(DEPTH_ROS2)
     assert ext.warnings == ()
     (cam,) = ext.cameras
-    assert cam.kind == "depth" and cam.ros_version == 2
+    assert cam.kind == "depth"
+    assert cam.ros_version == 2
     assert cam.image_topic == "/car/custom_camera/custom_image"
     assert cam.camera_info_topic == "/car/custom_camera/camera_info"
     assert cam.depth_topic == "/car/custom_camera/custom_depth"
     assert cam.depth_info_topic == "/car/custom_camera/depth/camera_info"
     assert cam.points_topic == "/car/custom_camera/custom_points"
     assert cam.frame_id == "custom_frame"
-    assert cam.depth_encoding == "32FC1" and cam.pointcloud
+    assert cam.depth_encoding == "32FC1"
+    assert cam.pointcloud
     assert cam.depth_range == (0.05, 10.0)  # clip planes are tighter than min/max depth
-    assert (cam.cx, cam.cy) == (160.5, 120.5)
+    assert (cam.cx, cam.cy) == (160.0, 120.0)
 
 
 def test_ros2_depth_defaults_and_options() -> None:
@@ -242,9 +251,11 @@ def test_ros2_depth_defaults_and_options() -> None:
         <pointcloud>false</pointcloud></plugin></sensor></gazebo>"""
     )
     (cam,) = ext.cameras
-    assert cam.depth_topic == "/d/depth/image_raw" and cam.points_topic is None
+    assert cam.depth_topic == "/d/depth/image_raw"
+    assert cam.points_topic is None
     assert cam.depth_range == (0.4, 50.0)  # gazebo_ros_camera's min_depth default 0.4
-    assert cam.depth_encoding == "16UC1" and not cam.pointcloud
+    assert cam.depth_encoding == "16UC1"
+    assert not cam.pointcloud
 
 
 DEPTH_ROS1 = """
@@ -327,6 +338,7 @@ def test_unsupported_things_warn_by_name() -> None:
           <material>Gazebo/Red</material><mu1>0.8</mu1><kp>1e6</kp>
           <sensor type="gpu_ray" name="lidar"/>
           <sensor type="camera" name="c"><camera><lens><type>gnomonical</type></lens></camera>
+            <visualize>true</visualize><ray_thing/>
             <plugin name="p" filename="libgazebo_ros_camera.so"><unknown_tag/></plugin>
             <plugin name="q" filename="libfancy.so"/></sensor></gazebo>
         <gazebo><plugin name="ctrl" filename="libgazebo_ros_control.so"/><static>false</static>
@@ -344,11 +356,14 @@ def test_unsupported_things_warn_by_name() -> None:
         "'libgazebo_ros_control.so'",
         "<static>",
         "<stopCfm>",
+        "<ray_thing>",
     ):
         assert needle in joined, needle
     assert "preserveFixedJoint" not in joined
+    assert "<visualize>" not in joined
     props = ext.link_properties["camera_link"]
-    assert props.rgba == (1.0, 0.0, 0.0, 1.0) and props.mu1 == 0.8
+    assert props.rgba == (1.0, 0.0, 0.0, 1.0)
+    assert props.mu1 == 0.8
 
 
 @pytest.mark.parametrize(
@@ -369,15 +384,16 @@ def test_bad_camera_is_one_clear_error(camera: str, needle: str) -> None:
         f"""<gazebo reference="camera_link"><sensor type="camera" name="c"><camera>{camera}
         </camera><plugin name="p" filename="libgazebo_ros_camera.so"/></sensor></gazebo>"""
     )
-    assert needle in text and "sensor 'c'" in text
+    assert needle in text
+    assert "sensor 'c'" in text
 
 
 def test_sensor_on_missing_link_is_an_error() -> None:
     text = bad(
-        '<gazebo reference="kamera_link"><sensor type="camera" name="c"><camera/></sensor>'
-        "</gazebo>"
+        '<gazebo reference="kamera_link"><sensor type="camera" name="c"><camera/></sensor></gazebo>'
     )
-    assert "'kamera_link' is not a link" in text and "camera_link" in text
+    assert "'kamera_link' is not a link" in text
+    assert "camera_link" in text
 
 
 def test_sensor_without_reference_or_on_joint_is_an_error() -> None:
@@ -407,14 +423,17 @@ def test_ros2_p3d() -> None:
     (odom,) = ext.odometry
     assert odom.topic == "/demo/ground_truth"
     assert (odom.frame_id, odom.child_frame_id) == ("world", "base_footprint")
-    assert odom.update_rate == 50.0 and odom.gaussian_noise == 0.01
-    assert odom.xyz_offset == (1.0, 2.0, 3.0) and odom.rpy_offset == (0.1, 0.2, 0.3)
+    assert odom.update_rate == 50.0
+    assert odom.gaussian_noise == 0.01
+    assert odom.xyz_offset == (1.0, 2.0, 3.0)
+    assert odom.rpy_offset == (0.1, 0.2, 0.3)
     assert odom.publish_tf  # the root link: world -> base_footprint is a tree edge
     default = extensions(
         '<gazebo><plugin name="p" filename="libgazebo_ros_p3d.so"><body_name>base_link'
         "</body_name></plugin></gazebo>"
     )
-    assert default.odometry[0].topic == "/odom" and default.odometry[0].frame_id == "world"
+    assert default.odometry[0].topic == "/odom"
+    assert default.odometry[0].frame_id == "world"
     assert not default.odometry[0].publish_tf  # base_link already has a parent
 
 
@@ -427,7 +446,8 @@ def test_ros1_p3d() -> None:
           <rpyOffsets>0 0 0</rpyOffsets></plugin></gazebo>"""
     )
     (odom,) = ext.odometry
-    assert odom.ros_version == 1 and odom.topic == "/ground_truth/state"
+    assert odom.ros_version == 1
+    assert odom.topic == "/ground_truth/state"
     assert (odom.frame_id, odom.child_frame_id) == ("world", "base_link")
     assert ext.warnings == ()
 
@@ -465,14 +485,20 @@ def test_ros2_diff_drive() -> None:
     )
     assert ext.warnings == ()
     (drive,) = ext.diff_drives
-    assert drive.command_topic == "/demo/cmd_demo" and drive.odometry_topic == "/demo/odom_demo"
+    assert drive.command_topic == "/demo/cmd_demo"
+    assert drive.odometry_topic == "/demo/odom_demo"
     assert drive.left_joints == ("left_wheel_joint",)
     assert drive.right_joints == ("right_wheel_joint",)
-    assert drive.wheel_separation == (0.4,) and drive.wheel_diameter == (0.2,)
-    assert drive.max_wheel_torque == 20 and drive.max_wheel_acceleration == 1.0
-    assert drive.publish_odom and drive.publish_odom_tf and drive.publish_wheel_tf
+    assert drive.wheel_separation == (0.4,)
+    assert drive.wheel_diameter == (0.2,)
+    assert drive.max_wheel_torque == 20
+    assert drive.max_wheel_acceleration == 1.0
+    assert drive.publish_odom
+    assert drive.publish_odom_tf
+    assert drive.publish_wheel_tf
     assert (drive.odometry_frame, drive.robot_base_frame) == ("odom_demo", "base_footprint")
-    assert drive.odometry_source == "world" and drive.update_rate == 100.0
+    assert drive.odometry_source == "world"
+    assert drive.update_rate == 100.0
 
 
 def test_ros2_diff_drive_defaults_warn_about_silence() -> None:
@@ -482,9 +508,12 @@ def test_ros2_diff_drive_defaults_warn_about_silence() -> None:
         </plugin></gazebo>"""
     )
     drive = ext.diff_drives[0]
-    assert drive.command_topic == "/cmd_vel" and drive.odometry_topic == "/odom"
-    assert not drive.publish_odom and not drive.publish_odom_tf
-    assert drive.wheel_separation == (0.34,) and drive.wheel_diameter == (0.15,)
+    assert drive.command_topic == "/cmd_vel"
+    assert drive.odometry_topic == "/odom"
+    assert not drive.publish_odom
+    assert not drive.publish_odom_tf
+    assert drive.wheel_separation == (0.34,)
+    assert drive.wheel_diameter == (0.15,)
     assert any("publishes neither odom" in w for w in ext.warnings)
 
 
@@ -504,12 +533,16 @@ def test_ros1_diff_drive() -> None:
     )
     (drive,) = ext.diff_drives
     assert drive.ros_version == 1
-    assert drive.command_topic == "/cmd_vel" and drive.odometry_topic == "/odom"
-    assert drive.publish_odom and drive.publish_odom_tf  # ROS 1 defaults: publishTf, OdomTF on
-    assert drive.wheel_separation == (0.5,) and drive.max_wheel_torque == 30
+    assert drive.command_topic == "/cmd_vel"
+    assert drive.odometry_topic == "/odom"
+    assert drive.publish_odom
+    assert drive.publish_odom_tf
+    assert drive.wheel_separation == (0.5,)
+    assert drive.max_wheel_torque == 30
     assert (drive.odometry_frame, drive.robot_base_frame) == ("odom", "base_footprint")
     joined = "\n".join(ext.warnings)
-    assert "<alwaysOn>" in joined and "<broadcastTF>" in joined
+    assert "<alwaysOn>" in joined
+    assert "<broadcastTF>" in joined
 
 
 def test_bad_diff_drive_joints() -> None:
@@ -518,7 +551,8 @@ def test_bad_diff_drive_joints() -> None:
         <left_joint>left_wheel</left_joint><right_joint>right_wheel_joint</right_joint>
         </plugin></gazebo>"""
     )
-    assert "'left_wheel' is not a joint" in text and "left_wheel_joint" in text
+    assert "'left_wheel' is not a joint" in text
+    assert "left_wheel_joint" in text
     text = bad(
         """<gazebo><plugin name="dd" filename="libgazebo_ros_diff_drive.so">
         <left_joint>camera_joint</left_joint><right_joint>right_wheel_joint</right_joint>
@@ -545,7 +579,9 @@ def test_ros2_imu() -> None:
     )
     assert ext.warnings == ()
     (imu,) = ext.imus
-    assert imu.topic == "/demo/imu" and imu.frame_id == "base_link" and imu.update_rate == 100
+    assert imu.topic == "/demo/imu"
+    assert imu.frame_id == "base_link"
+    assert imu.update_rate == 100
     assert imu.angular_velocity_noise[0].stddev == 2e-4
     assert imu.linear_acceleration_noise[2].stddev == 1.7e-2
     unmapped = extensions(
@@ -566,8 +602,10 @@ def test_ros1_imu() -> None:
             <frameName>imu_link</frameName></plugin></sensor></gazebo>"""
     )
     (imu,) = ext.imus
-    assert imu.ros_version == 1 and imu.topic == "/bot/imu"  # namespace defaults to the model
-    assert imu.frame_id == "imu_link" and imu.update_rate == 50.0
+    assert imu.ros_version == 1
+    assert imu.topic == "/bot/imu"
+    assert imu.frame_id == "imu_link"
+    assert imu.update_rate == 50.0
     assert imu.angular_velocity_noise[1].stddev == 0.01
 
 
@@ -582,6 +620,8 @@ def test_joint_state_publisher() -> None:
         <jointName>left_wheel_joint, right_wheel_joint</jointName></plugin></gazebo>"""
     )
     ros2, ros1 = ext.joint_state_publishers
-    assert ros2.topic == "/demo/joint_states" and ros2.update_rate == 20
+    assert ros2.topic == "/demo/joint_states"
+    assert ros2.update_rate == 20
     assert ros2.joints == ("left_wheel_joint", "right_wheel_joint")
-    assert ros1.topic == "/r1/joint_states" and ros1.joints == ros2.joints
+    assert ros1.topic == "/r1/joint_states"
+    assert ros1.joints == ros2.joints

@@ -21,6 +21,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "topic": ("visnav.cli.topic", "inspect and publish topics (ros2 topic)"),
     "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
     "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),
+    "calibrate": ("visnav.cli.calibrate", "chessboard camera calibration -> camera_info YAML"),
 }
 
 
