@@ -1,0 +1,78 @@
+"""Pose and velocity of a body's frame origin, read so that they are current after ``mj_step``.
+
+``mj_step`` leaves ``xpos``, ``xmat`` and ``cvel`` at the state *before* its
+integration, one step old. For a body with a free joint the pose and velocity
+come straight from ``qpos`` / ``qvel`` (always current); for other bodies they
+come from the kinematics, which the caller keeps current (``mj_forward``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import mujoco
+    import numpy.typing as npt
+
+__all__ = ["BodyReader", "BodyState"]
+
+
+@dataclass(frozen=True)
+class BodyState:
+    """A body frame in the world: position, rotation (world <- body), velocities.
+
+    ``linear`` is the velocity of the frame origin and ``angular`` the angular
+    velocity, both in world coordinates; ``quat_wxyz`` is MuJoCo's order.
+    """
+
+    position: npt.NDArray[np.float64]
+    rotation: npt.NDArray[np.float64]
+    quat_wxyz: npt.NDArray[np.float64]
+    linear: npt.NDArray[np.float64]
+    angular: npt.NDArray[np.float64]
+
+
+class BodyReader:
+    """Reads :class:`BodyState` of one body of a model."""
+
+    def __init__(self, model: mujoco.MjModel, body: int) -> None:
+        import mujoco  # noqa: PLC0415
+
+        self._mujoco = mujoco
+        self.model = model
+        self.body = body
+        jnt = int(model.body_jntadr[body]) if model.body_jntnum[body] > 0 else -1
+        self.free = (
+            jnt >= 0
+            and model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_FREE
+            and int(model.body_parentid[body]) == 0
+        )
+        self._qpos = int(model.jnt_qposadr[jnt]) if self.free else -1
+        self._dof = int(model.jnt_dofadr[jnt]) if self.free else -1
+
+    def read(self, data: mujoco.MjData) -> BodyState:
+        """The body's current state."""
+        mujoco = self._mujoco
+        rot = np.zeros(9)
+        if self.free:
+            pos = np.array(data.qpos[self._qpos : self._qpos + 3], dtype=np.float64)
+            quat = np.array(data.qpos[self._qpos + 3 : self._qpos + 7], dtype=np.float64)
+            quat /= np.linalg.norm(quat)
+            mujoco.mju_quat2Mat(rot, quat)
+            r = rot.reshape(3, 3)
+            linear = np.array(data.qvel[self._dof : self._dof + 3], dtype=np.float64)
+            angular = r @ np.asarray(data.qvel[self._dof + 3 : self._dof + 6], dtype=np.float64)
+            return BodyState(pos, r, quat, linear, angular)
+        pos = np.array(data.xpos[self.body], dtype=np.float64)
+        quat = np.array(data.xquat[self.body], dtype=np.float64)
+        r = np.array(data.xmat[self.body], dtype=np.float64).reshape(3, 3)
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body, velocity, 0)
+        angular = velocity[:3]
+        # mj_objectVelocity reports the velocity of the centre of mass; move it to the origin
+        offset = pos - np.asarray(data.xipos[self.body])
+        linear = velocity[3:] + np.cross(angular, offset)
+        return BodyState(pos, r, quat, linear, angular)
