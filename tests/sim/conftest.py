@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
 
 import pytest
 
 
 @pytest.fixture
-def mujoco_gl(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+def mujoco_gl(monkeypatch: pytest.MonkeyPatch) -> str:
     """Select EGL for MuJoCo rendering (unless the environment already chose a backend)."""
     if os.environ.get("MUJOCO_GL", "").strip().lower() not in ("egl", "osmesa"):
         monkeypatch.setenv("MUJOCO_GL", "egl")
-    yield os.environ["MUJOCO_GL"]
+    return os.environ["MUJOCO_GL"]

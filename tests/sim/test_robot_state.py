@@ -68,7 +68,8 @@ def test_static_transforms_of_fixed_joints() -> None:
     out = by_child(static_transforms(URDF, stamp_ns=5_000_000_001))
     assert set(out) == {"camera_link", "camera_optical"}
     cam = out["camera_link"]
-    assert cam.header.frame_id == "upper" and time_to_ns(cam.header.stamp) == 5_000_000_001
+    assert cam.header.frame_id == "upper"
+    assert time_to_ns(cam.header.stamp) == 5_000_000_001
     np.testing.assert_allclose(matrix(cam)[:3, 3], [0.1, 0, 0.05])
     np.testing.assert_allclose(matrix(cam)[:3, :3], rpy_to_matrix((0, 0.2, 0)), atol=1e-12)
     optical = matrix(out["camera_optical"])[:3, :3]

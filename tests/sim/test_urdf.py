@@ -98,10 +98,12 @@ FULL = robot(
 
 def test_parse_full_robot() -> None:
     urdf = parse_urdf(FULL)
-    assert urdf.name == "r" and urdf.root == "base"
+    assert urdf.name == "r"
+    assert urdf.root == "base"
     assert set(urdf.links) == {"base", "arm", "slider", "wheel", "tool"}
     base = urdf.links["base"]
-    assert base.inertial is not None and base.inertial.mass == 3.0
+    assert base.inertial is not None
+    assert base.inertial.mass == 3.0
     assert base.inertial.origin.rpy == (0.0, 0.0, 0.5)
     assert isinstance(base.visuals[0].geometry, Box)
     assert base.visuals[0].geometry.size == (0.4, 0.2, 0.1)
@@ -116,15 +118,20 @@ def test_parse_full_robot() -> None:
     assert isinstance(urdf.links["arm"].visuals[0].geometry, Capsule)
     assert urdf.links["tool"].inertial is None
     shoulder = urdf.joints["shoulder"]
-    assert shoulder.type == "revolute" and shoulder.axis == (0.0, 0.0, 1.0)
-    assert shoulder.limit is not None and (shoulder.limit.lower, shoulder.limit.upper) == (-1, 1.5)
-    assert shoulder.dynamics.damping == 0.3 and shoulder.dynamics.friction == 0.1
+    assert shoulder.type == "revolute"
+    assert shoulder.axis == (0.0, 0.0, 1.0)
+    assert shoulder.limit is not None
+    assert (shoulder.limit.lower, shoulder.limit.upper) == (-1, 1.5)
+    assert shoulder.dynamics.damping == 0.3
+    assert shoulder.dynamics.friction == 0.1
     assert urdf.joints["spin"].mimic is not None
     assert urdf.joints["spin"].mimic.multiplier == 2.0
-    assert urdf.joints["slide"].moves and not urdf.joints["tool_joint"].moves
+    assert urdf.joints["slide"].moves
+    assert not urdf.joints["tool_joint"].moves
     assert urdf.warnings == ()  # <calibration> is real-robot metadata, not a warning
     order = [link.name for link, _ in iter_links_depth_first(urdf)]
-    assert order[0] == "base" and order.index("arm") < order.index("slider") < order.index("tool")
+    assert order[0] == "base"
+    assert order.index("arm") < order.index("slider") < order.index("tool")
     assert urdf.parent_joint("tool") is not None
     assert urdf.parent_joint("base") is None
 
@@ -174,8 +181,10 @@ def test_missing_mesh_names_file_element_and_paths(tmp_path: Path) -> None:
         load_urdf(path)
     text = str(info.value)
     assert f"{path}:5" in text  # file and line of the <mesh>
-    assert "<mesh>" in text and "link 'a'" in text
-    assert "package://nopkg/meshes/body.stl" in text and "tried" in text
+    assert "<mesh>" in text
+    assert "link 'a'" in text
+    assert "package://nopkg/meshes/body.stl" in text
+    assert "tried" in text
     assert "Fix:" in text
 
 
@@ -232,10 +241,14 @@ def test_unknown_elements_and_transmissions_warn() -> None:
             '<child link="b"/></joint>',
             "planar joints are not supported",
         ),
-        ('<link name="a"><visual><geometry><box size="1 0 1"/></geometry></visual></link>',
-         "non-positive edge"),
-        ('<link name="a"><visual><geometry><box size="1 x 1"/></geometry></visual></link>',
-         "not 3 finite number"),
+        (
+            '<link name="a"><visual><geometry><box size="1 0 1"/></geometry></visual></link>',
+            "non-positive edge",
+        ),
+        (
+            '<link name="a"><visual><geometry><box size="1 x 1"/></geometry></visual></link>',
+            "not 3 finite number",
+        ),
         ('<link name="a"><visual><geometry/></visual></link>', "exactly one shape"),
         ('<link name="a"><inertial><mass value="-1"/></inertial></link>', "value=-1.0"),
         (
@@ -262,7 +275,8 @@ def test_bad_urdf_is_one_clear_error(body: str, needle: str) -> None:
         parse_urdf(robot(body), source="bad.urdf")
     text = str(info.value)
     assert needle in text, text
-    assert text.startswith("bad.urdf:") and "Fix:" in text
+    assert text.startswith("bad.urdf:")
+    assert "Fix:" in text
 
 
 def test_malformed_xml_reports_line_and_column() -> None:
@@ -283,7 +297,8 @@ XACRO = """<?xml version="1.0"?>
   <xacro:property name="w" value="$(arg width)"/>
   <xacro:macro name="box_link" params="name size">
     <link name="${name}">
-      <inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
+      <inertial><mass value="1"/>
+        <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
       <visual><geometry><box size="${size} ${size} ${size}"/></geometry></visual>
     </link>
   </xacro:macro>
@@ -310,11 +325,14 @@ def test_xacro_with_args_and_find(tmp_path: Path) -> None:
     desc = load_robot(path, args={"width": "0.25"}, packages={"parts": parts})
     assert desc.name == "xr"
     geometry = desc.urdf.links["base"].visuals[0].geometry
-    assert isinstance(geometry, Box) and geometry.size == (0.25, 0.25, 0.25)
-    assert "wheel" in desc.urdf.links and desc.urdf.joints["axle"].type == "continuous"
+    assert isinstance(geometry, Box)
+    assert geometry.size == (0.25, 0.25, 0.25)
+    assert "wheel" in desc.urdf.links
+    assert desc.urdf.joints["axle"].type == "continuous"
     default = load_robot(path, packages={"parts": parts})
     geometry = default.urdf.links["base"].visuals[0].geometry
-    assert isinstance(geometry, Box) and geometry.size == (0.5, 0.5, 0.5)
+    assert isinstance(geometry, Box)
+    assert geometry.size == (0.5, 0.5, 0.5)
     # The same document as text (no file): $(find) still works.
     from_text = load_robot(XACRO, packages={"parts": parts})
     assert set(from_text.urdf.links) == {"base", "wheel"}
@@ -326,7 +344,9 @@ def test_xacro_errors_name_the_file(tmp_path: Path) -> None:
     with pytest.raises(RobotDescriptionError) as info:
         load_robot(path, packages={"parts": tmp_path})
     text = str(info.value)
-    assert str(path) in text and "xacro failed" in text and "undefined_property" in text
+    assert str(path) in text
+    assert "xacro failed" in text
+    assert "undefined_property" in text
     missing = tmp_path / "missing_pkg.xacro"
     missing.write_text(XACRO)
     with pytest.raises(RobotDescriptionError, match=r"package 'parts' not found"):

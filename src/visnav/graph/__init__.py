@@ -17,7 +17,19 @@ from visnav.graph.errors import (
     TransportError,
 )
 from visnav.graph.graph_cache import EndpointInfo, GraphCache, NodeInfo
-from visnav.graph.names import InvalidNameError
+from visnav.graph.message_info import MessageInfo
+from visnav.graph.names import (
+    InvalidNameError,
+    Remapping,
+    RemapRule,
+    expand_topic_name,
+    parse_remap_rule,
+    resolve_topic_name,
+    validate_full_topic_name,
+    validate_namespace,
+    validate_node_name,
+    validate_topic_name,
+)
 from visnav.graph.node import Node, NodeLogger, Publisher, Subscription, Timer
 from visnav.graph.parameters import Parameter, ParameterType, SetParametersResult
 from visnav.graph.qos import (
@@ -43,6 +55,16 @@ __all__ = [
     "GraphError",
     "HistoryPolicy",
     "InvalidNameError",
+    "MessageInfo",
+    "RemapRule",
+    "Remapping",
+    "expand_topic_name",
+    "parse_remap_rule",
+    "resolve_topic_name",
+    "validate_full_topic_name",
+    "validate_namespace",
+    "validate_node_name",
+    "validate_topic_name",
     "Node",
     "NodeInfo",
     "NodeLogger",

@@ -1,0 +1,535 @@
+"""Camera and depth-camera rendering consistent with the published calibration.
+
+A :class:`CameraSensor` renders one :class:`~visnav.sim.gazebo.CameraSpec` from a
+compiled MuJoCo model: RGB from MuJoCo's lit pass (shadows and reflections off)
+and depth from a separate depth pass (segmentation colours, depth buffer read
+back and linearised), never from the lit pass.
+
+Geometry. MuJoCo cameras look along -z with y up; the MuJoCo camera sits at
+the sensor's link and ``<pose>`` with that orientation, so the published data
+follow the optical convention (x right, y down, z forward). The MuJoCo camera
+uses explicit intrinsics (sensor size, focal length and principal point in
+pixels), so the rendered image has exactly the published K, including Gazebo's
+principal point ``((width + 1) / 2, (height + 1) / 2)``. With lens distortion,
+an undistorted image is rendered on a larger canvas covering every distorted
+pixel's ray and warped with ``cv2.remap``, so a 3-D point projected with K and
+D (``cv2.projectPoints``) lands where it is drawn.
+
+Depth is the z coordinate in the optical frame: ``32FC1`` metres with NaN
+outside the valid range, or ``16UC1`` millimetres with 0 there. Point clouds
+are organized (height x width), in the optical frame, NaN where depth is
+invalid, with ``rgb`` when colour is rendered.
+
+Headless OpenGL: call :func:`select_gl_backend` (done by :class:`RenderContext`)
+before the first renderer; it prefers EGL, falls back to OSMesa and raises
+:class:`RenderingUnavailableError` naming the missing library and its Debian
+package when neither is installed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav.errors import VisnavError
+from visnav.msgs.image import numpy_to_image
+from visnav.msgs.pointcloud import dtype_to_fields, pack_rgb
+from visnav.msgs.time import ns_to_time
+from visnav.msgs.types import CameraInfo, Header, Image, PointCloud2, RegionOfInterest
+from visnav.sim.gazebo import CameraSpec, LensDistortion
+from visnav.sim.gl import RenderContext, RenderingUnavailableError, select_gl_backend
+
+__all__ = [
+    "CameraFrame",
+    "CameraSensor",
+    "RenderContext",
+    "RenderLayout",
+    "RenderingUnavailableError",
+    "camera_info",
+    "configure_mujoco_camera",
+    "distort_normalized",
+    "render_layout",
+    "select_gl_backend",
+    "undistort_normalized",
+]
+
+# depth_image_proc / PCL point layouts: x, y, z float32 (+ pad), rgb at byte 16.
+_XYZ_DTYPE = np.dtype(
+    {"names": ["x", "y", "z"], "formats": ["<f4"] * 3, "offsets": [0, 4, 8], "itemsize": 16}
+)
+_XYZRGB_DTYPE = np.dtype(
+    {
+        "names": ["x", "y", "z", "rgb"],
+        "formats": ["<f4"] * 4,
+        "offsets": [0, 4, 8, 16],
+        "itemsize": 32,
+    }
+)
+_CANVAS_LIMIT = 2.5  # max render canvas size / image size with lens distortion
+_CANVAS_MARGIN = 2.0  # pixels of margin around the distorted image's rays
+
+
+# --------------------------------------------------------------------------- distortion
+
+
+def distort_normalized(
+    x: NDArray[np.float64], y: NDArray[np.float64], d: LensDistortion
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Apply plumb_bob distortion to normalized image coordinates (as OpenCV does)."""
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3))
+    xd = x * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y
+    return xd, yd
+
+
+def undistort_normalized(
+    xd: NDArray[np.float64], yd: NDArray[np.float64], d: LensDistortion, *, iterations: int = 30
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Invert :func:`distort_normalized` with Newton's method.
+
+    Returns:
+        The undistorted x, y and the largest remaining residual (normalized units).
+    """
+    x, y = xd.copy(), yd.copy()
+    for _ in range(iterations):
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3))
+        dradial = 2.0 * d.k1 + r2 * (4.0 * d.k2 + 6.0 * d.k3 * r2)
+        fx = x * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x) - xd
+        fy = y * radial + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y - yd
+        j11 = radial + dradial * x * x + 2.0 * d.p1 * y + 6.0 * d.p2 * x
+        j12 = dradial * x * y + 2.0 * d.p1 * x + 2.0 * d.p2 * y
+        j21 = dradial * x * y + 2.0 * d.p1 * x + 2.0 * d.p2 * y
+        j22 = radial + dradial * y * y + 6.0 * d.p1 * y + 2.0 * d.p2 * x
+        det = j11 * j22 - j12 * j21
+        det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+        x = x - (j22 * fx - j12 * fy) / det
+        y = y - (j11 * fy - j21 * fx) / det
+    xr, yr = distort_normalized(x, y, d)
+    residual = float(np.nanmax(np.hypot(xr - xd, yr - yd))) if xd.size else 0.0
+    return x, y, residual
+
+
+@dataclass(frozen=True)
+class RenderLayout:
+    """The MuJoCo render canvas of a camera and, with distortion, its warp to the image.
+
+    ``fx``, ``fy``, ``cx``, ``cy`` are the canvas intrinsics (pixel centres at
+    integer coordinates). ``map_x``/``map_y`` (float32, image-shaped) give the
+    canvas coordinates each image pixel samples; None without distortion.
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    map_x: NDArray[np.float32] | None = None
+    map_y: NDArray[np.float32] | None = None
+
+
+def _pixel_rays(
+    spec: CameraSpec, u: NDArray[np.float64], v: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Undistorted normalized ray coordinates (x/z, y/z) of image pixels (u, v)."""
+    xd = (u - spec.cx) / spec.fx
+    yd = (v - spec.cy) / spec.fy
+    if spec.distortion.is_zero:
+        return xd, yd
+    x, y, residual = undistort_normalized(xd, yd, spec.distortion)
+    if not residual < 1e-9:
+        msg = (
+            f"camera {spec.name!r}: lens distortion {spec.distortion.d} cannot be inverted over "
+            f"the {spec.width}x{spec.height} image (residual {residual:.3g}); the coefficients "
+            "fold the image. Fix: use smaller k1/k2/k3/p1/p2"
+        )
+        raise VisnavError(msg)
+    return x, y
+
+
+def render_layout(spec: CameraSpec, *, with_maps: bool = True) -> RenderLayout:
+    """Return the render canvas (and remap tables) that reproduce ``spec``'s K and D.
+
+    Args:
+        spec: the camera.
+        with_maps: compute the per-pixel remap tables (False: canvas only).
+    """
+    if spec.distortion.is_zero:
+        return RenderLayout(spec.width, spec.height, spec.fx, spec.fy, spec.cx, spec.cy)
+    w, h = spec.width, spec.height
+    # The rays through the image border (pixel edges) bound the canvas.
+    us = np.arange(-0.5, w, 0.5)
+    vs = np.arange(-0.5, h, 0.5)
+    border_u = np.concatenate([us, us, np.full(vs.size, -0.5), np.full(vs.size, w - 0.5)])
+    border_v = np.concatenate([np.full(us.size, -0.5), np.full(us.size, h - 0.5), vs, vs])
+    bx, by = _pixel_rays(spec, border_u, border_v)
+    xmin, xmax = float(bx.min()), float(bx.max())
+    ymin, ymax = float(by.min()), float(by.max())
+    scale = min(
+        1.0,
+        (_CANVAS_LIMIT * w - 2 * _CANVAS_MARGIN) / (spec.fx * (xmax - xmin)),
+        (_CANVAS_LIMIT * h - 2 * _CANVAS_MARGIN) / (spec.fy * (ymax - ymin)),
+    )
+    fx, fy = spec.fx * scale, spec.fy * scale
+    cx = -xmin * fx + _CANVAS_MARGIN
+    cy = -ymin * fy + _CANVAS_MARGIN
+    width = math.ceil(fx * (xmax - xmin) + 2 * _CANVAS_MARGIN) + 1
+    height = math.ceil(fy * (ymax - ymin) + 2 * _CANVAS_MARGIN) + 1
+    if not with_maps:
+        return RenderLayout(width, height, fx, fy, cx, cy)
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    x, y = _pixel_rays(spec, u, v)
+    return RenderLayout(
+        width, height, fx, fy, cx, cy,
+        map_x=(fx * x + cx).astype(np.float32),
+        map_y=(fy * y + cy).astype(np.float32),
+    )  # fmt: skip
+
+
+def configure_mujoco_camera(camera: Any, spec: CameraSpec) -> None:
+    """Give a MuJoCo spec camera (``mjsCamera``) the intrinsics of ``spec``'s render canvas.
+
+    The camera gets ``resolution`` and ``sensor_size`` equal to the canvas in
+    pixels (one length unit per pixel), the focal length in pixels and the
+    principal point offset that puts the optical axis at (cx, cy).
+    """
+    layout = render_layout(spec, with_maps=False)
+    camera.resolution = [layout.width, layout.height]
+    camera.sensor_size = [float(layout.width), float(layout.height)]
+    camera.focal_length = [layout.fx, layout.fy]
+    # MuJoCo's principal offset is measured from the canvas centre ((n - 1) / 2 in
+    # pixel-centre coordinates), positive towards -u and -v (verified by the tests).
+    camera.principal_length = [
+        (layout.width - 1) / 2.0 - layout.cx,
+        (layout.height - 1) / 2.0 - layout.cy,
+    ]
+
+
+# --------------------------------------------------------------------------- messages
+
+
+def camera_info(spec: CameraSpec, header: Header) -> CameraInfo:
+    """Return the ``CameraInfo`` gazebo_ros_camera publishes for ``spec``.
+
+    plumb_bob with ``D = (k1, k2, p1, p2, k3)``, ``K`` from :meth:`CameraSpec.k`,
+    ``R`` identity and ``P = [K | (-fx * hack_baseline, 0, 0)]``.
+    """
+    return CameraInfo(
+        header=header,
+        height=spec.height,
+        width=spec.width,
+        distortion_model="plumb_bob",
+        d=np.array(spec.distortion.d, dtype=np.float64),
+        k=np.array(spec.k(), dtype=np.float64),
+        r=np.eye(3).reshape(-1),
+        p=np.array(spec.p(), dtype=np.float64),
+        binning_x=0,
+        binning_y=0,
+        roi=RegionOfInterest(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+    )
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    """One rendered frame: messages (None when not produced) and the raw arrays.
+
+    ``color`` is the published image as an array (encoding's layout); ``depth``
+    is float32 metres in the optical frame with NaN where invalid.
+    """
+
+    stamp_ns: int
+    camera_info: CameraInfo
+    image: Image | None = None
+    depth_image: Image | None = None
+    depth_camera_info: CameraInfo | None = None
+    points: PointCloud2 | None = None
+    color: NDArray[Any] | None = None
+    depth: NDArray[np.float32] | None = None
+
+
+# --------------------------------------------------------------------------- sensor
+
+
+class CameraSensor:
+    """Renders a :class:`~visnav.sim.gazebo.CameraSpec` from a compiled MuJoCo model.
+
+    Args:
+        model: the compiled model holding the camera (see
+            :func:`visnav.sim.robot.add_robot_to_spec`).
+        spec: the camera configuration.
+        camera: the MuJoCo camera name or id.
+        seed: seed of this sensor's noise generator.
+        context: a shared :class:`RenderContext` (default: a new one).
+        render_color: render the colour image (default: when the plugin publishes
+            an image, or for a plain camera); depth sensors always render depth.
+
+    Raises:
+        RenderingUnavailableError: no headless OpenGL.
+        VisnavError: the camera does not exist, or its MuJoCo intrinsics do not
+            match ``spec`` (build it with :func:`configure_mujoco_camera`).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        spec: CameraSpec,
+        *,
+        camera: str | int,
+        seed: int = 0,
+        context: RenderContext | None = None,
+        render_color: bool | None = None,
+    ) -> None:
+        cam_id = (
+            camera
+            if isinstance(camera, int)
+            else mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        )
+        if not 0 <= cam_id < model.ncam:
+            names = [model.camera(i).name for i in range(model.ncam)]
+            msg = (
+                f"MuJoCo camera {camera!r} does not exist (cameras: {names}). Fix: add the "
+                "robot with add_robot_to_spec before compiling"
+            )
+            raise VisnavError(msg)
+        self.spec = spec
+        self.model = model
+        self.camera_id = int(cam_id)
+        self.layout = render_layout(spec)
+        want = (self.layout.width, self.layout.height)
+        have = tuple(int(v) for v in model.cam_resolution[cam_id])
+        if have != want or model.cam_sensorsize[cam_id][1] == 0:
+            msg = (
+                f"MuJoCo camera {camera!r} has resolution {have} without matching intrinsics; "
+                f"camera {spec.name!r} needs a {want} canvas. Fix: configure it with "
+                "configure_mujoco_camera"
+            )
+            raise VisnavError(msg)
+        self.render_color = (
+            render_color
+            if render_color is not None
+            else (spec.kind == "camera" or spec.image_topic is not None)
+        )
+        self.render_depth = spec.kind == "depth"
+        self._owns_context = context is None
+        self.context = context or RenderContext(
+            model, max_width=self.layout.width, max_height=self.layout.height
+        )
+        if (
+            self.layout.width > self.context.max_width
+            or self.layout.height > self.context.max_height
+        ):
+            msg = (
+                f"camera {spec.name!r} renders {want} but the shared RenderContext holds at most "
+                f"{(self.context.max_width, self.context.max_height)}. Fix: create the context "
+                "with max_width/max_height covering every camera"
+            )
+            raise VisnavError(msg)
+        self.rng = np.random.default_rng(seed)
+        self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
+        self._option = mujoco.MjvOption()
+        self._camera = mujoco.MjvCamera()
+        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self._camera.fixedcamid = self.camera_id
+        flags = self._scene.flags
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
+        flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+        self._rect = mujoco.MjrRect(0, 0, self.layout.width, self.layout.height)
+        shape = (self.layout.height, self.layout.width)
+        self._rgb = np.empty((*shape, 3), dtype=np.uint8)
+        self._zbuf = np.empty(shape, dtype=np.float32)
+        u, v = np.meshgrid(
+            np.arange(spec.width, dtype=np.float64), np.arange(spec.height, dtype=np.float64)
+        )
+        rx, ry = _pixel_rays(spec, u, v)
+        self._rays = (rx.astype(np.float32), ry.astype(np.float32))
+
+    def close(self) -> None:
+        """Free the render context if this sensor created it."""
+        if self._owns_context:
+            self.context.close()
+
+    # rendering ---------------------------------------------------------------
+
+    def _render_passes(
+        self, data: mujoco.MjData
+    ) -> tuple[NDArray[np.uint8] | None, NDArray[np.float32] | None]:
+        vis = self.model.vis.map
+        extent = float(self.model.stat.extent)
+        saved = (float(vis.znear), float(vis.zfar))
+        vis.znear = self.spec.clip_near / extent
+        vis.zfar = self.spec.clip_far / extent
+        try:
+            mujoco.mjv_updateScene(
+                self.model,
+                data,
+                self._option,
+                None,
+                self._camera,
+                mujoco.mjtCatBit.mjCAT_ALL,
+                self._scene,
+            )
+            self.context.make_current()
+            rgb = depth = None
+            if self.render_color:
+                mujoco.mjr_render(self._rect, self._scene, self.context.mjr)
+                mujoco.mjr_readPixels(self._rgb, None, self._rect, self.context.mjr)
+                rgb = self._rgb[::-1]
+            if self.render_depth:
+                flags = self._scene.flags
+                saved_flags = (
+                    flags[mujoco.mjtRndFlag.mjRND_SEGMENT],
+                    flags[mujoco.mjtRndFlag.mjRND_IDCOLOR],
+                )
+                flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 1
+                flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 1
+                try:
+                    mujoco.mjr_render(self._rect, self._scene, self.context.mjr)
+                    mujoco.mjr_readPixels(None, self._zbuf, self._rect, self.context.mjr)
+                finally:
+                    flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = saved_flags[0]
+                    flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = saved_flags[1]
+                glcam = self._scene.camera[0]
+                near = np.float32(glcam.frustum_near)
+                far = np.float32(glcam.frustum_far)
+                # Reversed-Z depth buffer (1 at near, 0 at far) back to metric z.
+                # depth = f n / (z (f - n) + n), in float32 (relative error ~1e-7).
+                depth = np.multiply(self._zbuf[::-1], far - near, dtype=np.float32)
+                depth += near
+                np.divide(far * near, depth, out=depth)
+        finally:
+            vis.znear, vis.zfar = saved
+        return rgb, depth
+
+    def _warp(self, image: NDArray[Any], *, nearest: bool) -> NDArray[Any]:
+        if self.layout.map_x is None or self.layout.map_y is None:
+            return image
+        interp = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
+        return cv2.remap(
+            image,
+            self.layout.map_x,
+            self.layout.map_y,
+            interp,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
+
+    def _color(self, rgb: NDArray[np.uint8]) -> NDArray[Any]:
+        spec = self.spec
+        image = np.ascontiguousarray(self._warp(rgb, nearest=False))
+        if spec.encoding.startswith("mono"):
+            image = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+        elif spec.encoding == "bgr8":
+            image = np.ascontiguousarray(image[..., ::-1])
+        deep = spec.encoding in ("mono16", "rgb16")
+        noise = spec.noise
+        if noise.active:
+            top = 65535.0 if deep else 255.0
+            values = image.astype(np.float32) / np.float32(255.0)
+            values += self.rng.normal(noise.mean, noise.stddev, size=values.shape).astype(
+                np.float32
+            )
+            noisy: NDArray[Any] = np.clip(np.rint(values * top), 0, top)
+            return noisy.astype(np.uint16 if deep else np.uint8)
+        if deep:
+            wide: NDArray[np.uint16] = image.astype(np.uint16) * np.uint16(257)
+            return wide
+        return image
+
+    def _depth(self, depth: NDArray[np.float32]) -> NDArray[np.float32]:
+        spec = self.spec
+        out = self._warp(depth, nearest=True)  # a fresh array: modified in place
+        lo, hi = spec.depth_range
+        invalid = (out <= lo) | (out >= hi)
+        if spec.noise.active:
+            out += self.rng.normal(spec.noise.mean, spec.noise.stddev, size=out.shape).astype(
+                np.float32
+            )
+        out[invalid] = np.nan
+        return out
+
+    def _cloud(
+        self, metres: NDArray[np.float32], color: NDArray[Any] | None, header: Header
+    ) -> PointCloud2:
+        """Organized cloud in depth_image_proc / PCL layout, filled in one allocation."""
+        spec = self.spec
+        colours: NDArray[np.uint8] | None = None
+        if color is not None:
+            if spec.encoding == "mono8":
+                colours = np.repeat(color[..., None], 3, axis=-1)
+            elif spec.encoding == "mono16":
+                colours = np.repeat((color >> 8).astype(np.uint8)[..., None], 3, axis=-1)
+            elif spec.encoding == "bgr8":
+                colours = color[..., ::-1]
+            elif spec.encoding == "rgb16":
+                colours = (color >> 8).astype(np.uint8)
+            else:
+                colours = color
+        dtype = _XYZ_DTYPE if colours is None else _XYZRGB_DTYPE
+        cloud: NDArray[Any] = np.zeros(metres.shape, dtype=dtype)
+        np.multiply(self._rays[0], metres, out=cloud["x"])
+        np.multiply(self._rays[1], metres, out=cloud["y"])
+        cloud["z"] = metres
+        if colours is not None:
+            cloud["rgb"] = pack_rgb(colours)
+        height, width = metres.shape
+        return PointCloud2(
+            header=header,
+            height=height,
+            width=width,
+            fields=dtype_to_fields(dtype),
+            is_bigendian=False,
+            point_step=dtype.itemsize,
+            row_step=dtype.itemsize * width,
+            data=cloud.reshape(-1).view(np.uint8),
+            is_dense=bool(np.isfinite(metres).all()),
+        )
+
+    def render(self, data: mujoco.MjData, *, stamp_ns: int = 0) -> CameraFrame:
+        """Render the current state of ``data`` into messages stamped ``stamp_ns``.
+
+        Args:
+            data: MuJoCo data of the sensor's model (after ``mj_forward``/``mj_step``).
+            stamp_ns: the header stamp (sim time in integer nanoseconds).
+
+        Returns:
+            The frame: ``camera_info`` always; ``image`` when colour is rendered and
+            depth image, depth camera info and points for a depth sensor.
+        """
+        spec = self.spec
+        header = Header(stamp=ns_to_time(stamp_ns), frame_id=spec.frame_id)
+        info = camera_info(spec, header)
+        rgb, depth = self._render_passes(data)
+        color = image = None
+        if rgb is not None:
+            color = self._color(rgb)
+            image = numpy_to_image(color, spec.encoding, header=header)
+        if depth is None:
+            return CameraFrame(stamp_ns, info, image=image, color=color)
+        metres = self._depth(depth)
+        if spec.depth_encoding == "16UC1":
+            mm = np.nan_to_num(np.rint(metres * 1000.0), nan=0.0)
+            mm = np.where(mm > 65535.0, 0.0, mm)
+            depth_image = numpy_to_image(mm.astype(np.uint16), "16UC1", header=header)
+        else:
+            depth_image = numpy_to_image(metres, "32FC1", header=header)
+        points = None
+        if spec.pointcloud:
+            points = self._cloud(metres, color, header)
+        return CameraFrame(
+            stamp_ns,
+            info,
+            image=image,
+            depth_image=depth_image,
+            depth_camera_info=info,
+            points=points,
+            color=color,
+            depth=metres,
+        )

@@ -1,0 +1,551 @@
+"""Robot descriptions (URDF / Xacro + ``<gazebo>`` blocks) and their MuJoCo bodies.
+
+The simulator composes a MuJoCo model from a world spec and robots::
+
+    spec = build_world_spec(world)                      # visnav.sim.world
+    robot = load_robot("car.urdf.xacro", args={"camera": "true"})
+    handles = add_robot_to_spec(spec, robot, prefix="car/", spawn_xyz_yaw=(0, 0, 0.1, 0))
+    model = spec.compile()
+    body_id = model.body(handles.bodies["base_link"]).id
+
+Mapping to MuJoCo:
+
+* every link is a body whose frame is the link frame (fixed joints are welded,
+  not merged, so every URDF frame exists for TF, sensors and p3d);
+* revolute -> hinge with range, continuous -> hinge without range, prismatic ->
+  slide with range; ``<dynamics>`` -> damping / frictionloss; ``<limit effort>``
+  -> the joint's actuator force range; ``<mimic>`` -> a joint equality;
+* a robot whose root link is not ``world`` gets a free joint (Gazebo's default
+  for a spawned URDF); a ``world`` root fixes the robot at the spawn pose;
+* inertials are used as given (principal axes computed here); visual geoms are
+  group 1 without contacts or mass, collision geoms group 3 with contacts and no
+  mass; ``<gazebo reference><material>`` colours and ``mu1`` friction apply;
+  the robot's own bodies do not collide with each other (Gazebo's default
+  ``self_collide`` false);
+* each camera sensor becomes a MuJoCo camera at its link and ``<pose>`` whose
+  intrinsics reproduce the published K (see :mod:`visnav.sim.camera`); each
+  camera and IMU also gets a site in the sensor frame, and each IMU MuJoCo
+  gyro, accelerometer and framequat sensors on that site.
+
+Requires the spec's ``compiler.inertiafromgeom`` to stay ``AUTO`` (the default).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import threading
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav.sim._rigid import R_SENSOR_MJCAM, make_transform, matrix_to_quat_wxyz
+from visnav.sim.camera import configure_mujoco_camera
+from visnav.sim.gazebo import GazeboExtensions, parse_gazebo_extensions
+from visnav.sim.urdf import (
+    Box,
+    Capsule,
+    Cylinder,
+    Geometry,
+    Link,
+    Mesh,
+    RobotDescriptionError,
+    Sphere,
+    Urdf,
+    find_package,
+    iter_links_depth_first,
+    parse_urdf,
+)
+
+__all__ = [
+    "RobotDescription",
+    "RobotHandles",
+    "add_robot_to_spec",
+    "expand_xacro",
+    "load_robot",
+]
+
+_LOG = logging.getLogger("visnav.sim.robot")
+_XACRO_LOCK = threading.Lock()  # xacro keeps its parser state in module globals
+_DEFAULT_RGBA = (0.7, 0.7, 0.7, 1.0)
+_MIN_INERTIA = 1e-9  # kg m^2, for point masses MuJoCo would reject
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A robot: its URDF, its Gazebo sensors/plugins, the expanded XML and all warnings."""
+
+    urdf: Urdf
+    gazebo: GazeboExtensions
+    xml: str = field(repr=False)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def name(self) -> str:
+        """The ``<robot name>``."""
+        return self.urdf.name
+
+    @property
+    def source(self) -> str:
+        """The file the description was read from (or ``"<string>"``)."""
+        return self.urdf.source
+
+
+@dataclass(frozen=True)
+class RobotHandles:
+    """MuJoCo element names of one robot added to a spec (look ids up after compiling).
+
+    Attributes:
+        prefix: the name prefix used for every element.
+        root_body: body of the URDF root link (``"world"`` for a fixed-base robot).
+        free_joint: the free joint of a floating base, or None.
+        bodies: URDF link -> MuJoCo body name (a ``world`` link maps to ``"world"``).
+        joints: moving URDF joint -> MuJoCo joint name.
+        cameras: camera sensor name -> MuJoCo camera name.
+        sites: sensor name (camera or IMU) -> MuJoCo site in the sensor frame.
+        imu_sensors: IMU name -> (gyro, accelerometer, framequat) MuJoCo sensor names.
+    """
+
+    prefix: str
+    root_body: str
+    free_joint: str | None
+    bodies: Mapping[str, str]
+    joints: Mapping[str, str]
+    cameras: Mapping[str, str]
+    sites: Mapping[str, str]
+    imu_sensors: Mapping[str, tuple[str, str, str]]
+
+
+# --------------------------------------------------------------------------- loading
+
+
+@contextmanager
+def _xacro_find(base_dir: Path | None, packages: Mapping[str, Path | str] | None) -> Iterator[None]:
+    """Make xacro's ``$(find pkg)`` use visnav's package lookup instead of ament_index."""
+    from xacro import substitution_args  # noqa: PLC0415 - optional heavy import
+
+    original = substitution_args._eval_find
+
+    def find(pkg: str) -> str:
+        path = find_package(pkg, base_dir=base_dir, packages=packages)
+        if path is None:
+            msg = (
+                f"$(find {pkg}): package {pkg!r} not found. Fix: pass "
+                f"packages={{'{pkg}': '/path/to/{pkg}'}} to load_robot"
+            )
+            raise RobotDescriptionError(msg)
+        return str(path)
+
+    substitution_args._eval_find = find
+    try:
+        yield
+    finally:
+        substitution_args._eval_find = original
+
+
+def expand_xacro(
+    source: str | Path,
+    *,
+    args: Mapping[str, str] | None = None,
+    packages: Mapping[str, Path | str] | None = None,
+    text: str | None = None,
+) -> str:
+    """Run Xacro on a file (or on ``text``) with ``name:=value`` arguments.
+
+    Args:
+        source: the .xacro file (used for includes and messages).
+        args: Xacro arguments, as ``xacro file name:=value`` would pass them.
+        packages: package name -> directory for ``$(find pkg)``.
+        text: the document, when it is not read from ``source``.
+
+    Returns:
+        The expanded URDF XML.
+
+    Raises:
+        RobotDescriptionError: Xacro failed (the message names the file and
+            Xacro's reason).
+    """
+    import xacro  # noqa: PLC0415 - optional heavy import
+
+    path = Path(source)
+    base_dir = path.resolve().parent if text is None else None
+    mappings = {str(k): str(v) for k, v in (args or {}).items()}
+    with _XACRO_LOCK, _xacro_find(base_dir, packages):
+        try:
+            if text is None:
+                doc = xacro.process_file(str(path), mappings=mappings)
+            else:
+                xacro.init_stacks(None)
+                doc = xacro.parse(text)
+                xacro.process_doc(doc, mappings=mappings)
+        except RobotDescriptionError:
+            raise
+        except Exception as exc:
+            reason = " ".join((str(exc) or type(exc).__name__).split())
+            stack = " <- ".join(
+                str(f) for f in reversed(getattr(xacro, "filestack", None) or []) if f
+            )
+            where = f" (in {stack})" if stack else ""
+            msg = (
+                f"{source}: xacro failed{where}: {reason}. Fix: correct the Xacro; arguments "
+                f"given: {mappings or 'none'}"
+            )
+            raise RobotDescriptionError(msg) from exc
+        xml: str = doc.toxml()
+    return xml
+
+
+def _is_xacro(text: str, path: Path | None) -> bool:
+    if path is not None and path.name.endswith(".xacro"):
+        return True
+    return "xmlns:xacro" in text or "<xacro:" in text
+
+
+def load_robot(
+    path_or_xml: str | Path,
+    *,
+    args: Mapping[str, str] | None = None,
+    packages: Mapping[str, Path | str] | None = None,
+) -> RobotDescription:
+    """Load a robot from a URDF or Xacro file, or from URDF/Xacro XML text.
+
+    Args:
+        path_or_xml: a file path, or XML text (anything starting with ``<``).
+        args: Xacro ``name:=value`` arguments (ignored with a warning for plain URDF).
+        packages: package name -> directory for ``package://`` and ``$(find pkg)``.
+
+    Returns:
+        The description with its Gazebo sensors and plugins and every warning
+        (each warning is also logged).
+
+    Raises:
+        RobotDescriptionError: unreadable file, Xacro failure, malformed URDF,
+            missing mesh or invalid ``<gazebo>`` configuration.
+    """
+    path: Path | None = None
+    if isinstance(path_or_xml, Path) or not str(path_or_xml).lstrip().startswith("<"):
+        path = Path(path_or_xml)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            msg = f"{path}: cannot read the robot description ({exc.strerror}). Fix: check the path"
+            raise RobotDescriptionError(msg) from exc
+        source = str(path)
+    else:
+        text = str(path_or_xml)
+        source = "<string>"
+    warnings: list[str] = []
+    if _is_xacro(text, path):
+        xml = expand_xacro(
+            path if path is not None else source,
+            args=args,
+            packages=packages,
+            text=None if path is not None else text,
+        )
+    else:
+        xml = text
+        if args:
+            message = f"{source}: arguments {dict(args)} given but the file is not Xacro; ignored"
+            warnings.append(message)
+            _LOG.warning("%s", message)
+    base_dir = path.resolve().parent if path is not None else None
+    urdf = parse_urdf(xml, source=source, base_dir=base_dir, packages=packages)
+    gazebo = parse_gazebo_extensions(urdf)
+    warnings += [*urdf.warnings, *gazebo.warnings]
+    return RobotDescription(urdf=urdf, gazebo=gazebo, xml=xml, warnings=tuple(warnings))
+
+
+# --------------------------------------------------------------------------- MuJoCo
+
+
+def _add_geom(
+    body: Any,
+    spec: mujoco.MjSpec,
+    geometry: Geometry,
+    t_link_geom: NDArray[np.float64],
+    name: str,
+    meshes: dict[tuple[str, tuple[float, float, float]], str],
+    prefix: str,
+) -> Any:
+    geom = body.add_geom(name=name)
+    pos = t_link_geom[:3, 3]
+    rot = t_link_geom[:3, :3]
+    if isinstance(geometry, Box):
+        geom.type = mujoco.mjtGeom.mjGEOM_BOX
+        geom.size = [s / 2.0 for s in geometry.size]
+    elif isinstance(geometry, Cylinder):
+        geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+        geom.size = [geometry.radius, geometry.length / 2.0, 0.0]
+    elif isinstance(geometry, Capsule):
+        geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+        geom.size = [geometry.radius, geometry.length / 2.0, 0.0]
+    elif isinstance(geometry, Sphere):
+        geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
+        geom.size = [geometry.radius, 0.0, 0.0]
+    elif isinstance(geometry, Mesh):
+        key = (str(geometry.path), geometry.scale)
+        if key not in meshes:
+            mesh_name = f"{prefix}mesh{len(meshes)}:{geometry.path.stem}"
+            spec.add_mesh(name=mesh_name, file=str(geometry.path), scale=list(geometry.scale))
+            meshes[key] = mesh_name
+        geom.type = mujoco.mjtGeom.mjGEOM_MESH
+        geom.meshname = meshes[key]
+    geom.pos = pos.tolist()
+    geom.quat = list(matrix_to_quat_wxyz(rot))
+    geom.density = 0.0
+    return geom
+
+
+def _set_inertial(body: Any, link: Link, warnings: list[str], source: str) -> None:
+    inertial = link.inertial
+    if inertial is None or inertial.mass <= 0.0:
+        return
+    t_link_inertial = inertial.origin.matrix()
+    rot = t_link_inertial[:3, :3]
+    tensor = rot @ inertial.inertia_matrix() @ rot.T
+    eigvals, eigvecs = np.linalg.eigh(tensor)
+    if np.linalg.det(eigvecs) < 0:
+        eigvecs[:, 0] = -eigvecs[:, 0]
+    if float(eigvals.min()) <= _MIN_INERTIA:
+        message = (
+            f"{source}: link {link.name!r} has mass {inertial.mass:g} kg but principal inertia "
+            f"{np.round(eigvals, 12).tolist()}; MuJoCo needs positive inertia, so moments below "
+            f"{_MIN_INERTIA:g} kg m^2 are raised to it"
+        )
+        warnings.append(message)
+        _LOG.warning("%s", message)
+        eigvals = np.maximum(eigvals, _MIN_INERTIA)
+    body.mass = float(inertial.mass)
+    body.ipos = t_link_inertial[:3, 3].tolist()
+    body.iquat = list(matrix_to_quat_wxyz(eigvecs))
+    body.inertia = eigvals.tolist()
+    body.explicitinertial = True
+
+
+def _check_masses(urdf: Urdf) -> None:
+    """Every moving link with its welded (fixed-joint) descendants must have mass."""
+
+    def welded_mass(link: str) -> float:
+        inertial = urdf.links[link].inertial
+        total = inertial.mass if inertial is not None else 0.0
+        for joint in urdf.child_joints(link):
+            if not joint.moves:
+                total += welded_mass(joint.child)
+        return total
+
+    for joint in urdf.joints.values():
+        if joint.moves and welded_mass(joint.child) <= 0.0:
+            msg = (
+                f"{urdf.source}: link {joint.child!r} is moved by {joint.type} joint "
+                f"{joint.name!r} but has no mass (no <inertial>, or mass 0, on it or on links "
+                "fixed to it). Fix: add <inertial> with <mass value> > 0 and an <inertia> to "
+                f"link {joint.child!r}"
+            )
+            raise RobotDescriptionError(msg)
+    root_mass = welded_mass(urdf.root)
+    if urdf.root != "world" and root_mass <= 0.0:
+        msg = (
+            f"{urdf.source}: the root link {urdf.root!r} floats freely but has no mass. Fix: add "
+            f"<inertial> to {urdf.root!r} (or fix the robot with a 'world' link and a fixed joint)"
+        )
+        raise RobotDescriptionError(msg)
+
+
+def add_robot_to_spec(
+    spec: mujoco.MjSpec,
+    robot: RobotDescription,
+    *,
+    prefix: str = "",
+    spawn_xyz_yaw: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
+) -> RobotHandles:
+    """Add a robot's bodies, joints, geoms, inertials, cameras and sensor sites to a spec.
+
+    Args:
+        spec: the MuJoCo spec to extend (e.g. from ``build_world_spec``).
+        robot: the robot description.
+        prefix: prepended to every MuJoCo name (use one per robot instance).
+        spawn_xyz_yaw: initial position (m) and yaw (rad) of the root link in the world.
+
+    Returns:
+        The MuJoCo names of the robot's elements.
+
+    Raises:
+        RobotDescriptionError: a moving link without mass, or a name already in
+            the spec (choose another ``prefix``).
+    """
+    urdf = robot.urdf
+    if len(spawn_xyz_yaw) != 4 or not all(math.isfinite(float(v)) for v in spawn_xyz_yaw):
+        msg = f"spawn_xyz_yaw is {tuple(spawn_xyz_yaw)}: expected 4 finite numbers x, y, z, yaw"
+        raise RobotDescriptionError(msg)
+    _check_masses(urdf)
+    x, y, z, yaw = (float(v) for v in spawn_xyz_yaw)
+    t_world_spawn = make_transform((x, y, z), (0.0, 0.0, yaw))
+    props = robot.gazebo.link_properties
+    warnings: list[str] = []
+    meshes: dict[tuple[str, tuple[float, float, float]], str] = {}
+    bodies: dict[str, str] = {}
+    mj_bodies: dict[str, Any] = {}
+    joints: dict[str, str] = {}
+    free_joint: str | None = None
+    colliding: list[str] = []
+    existing = {b.name for b in spec.bodies} | {"world"}
+    for link, joint in iter_links_depth_first(urdf):
+        if link.name == "world" and joint is None:
+            bodies[link.name] = "world"
+            mj_bodies[link.name] = spec.worldbody
+            continue
+        body_name = f"{prefix}{link.name}"
+        if body_name in existing:
+            msg = (
+                f"{urdf.source}: MuJoCo body {body_name!r} already exists in the spec. Fix: pass "
+                "a distinct prefix= to add_robot_to_spec for each robot"
+            )
+            raise RobotDescriptionError(msg)
+        if joint is None:  # floating root
+            parent, t_parent_link = spec.worldbody, t_world_spawn
+        elif joint.parent == "world" and urdf.root == "world":
+            parent, t_parent_link = spec.worldbody, t_world_spawn @ joint.origin.matrix()
+        else:
+            parent, t_parent_link = mj_bodies[joint.parent], joint.origin.matrix()
+        body = parent.add_body(name=body_name)
+        body.pos = t_parent_link[:3, 3].tolist()
+        body.quat = list(matrix_to_quat_wxyz(t_parent_link[:3, :3]))
+        bodies[link.name] = body_name
+        mj_bodies[link.name] = body
+        _set_inertial(body, link, warnings, urdf.source)
+        if joint is None or joint.type == "floating":
+            free_joint = f"{prefix}{joint.name if joint is not None else link.name + ':free'}"
+            body.add_freejoint(name=free_joint)
+        elif joint.moves:
+            mj_joint = body.add_joint(name=f"{prefix}{joint.name}")
+            mj_joint.type = (
+                mujoco.mjtJoint.mjJNT_SLIDE
+                if joint.type == "prismatic"
+                else mujoco.mjtJoint.mjJNT_HINGE
+            )
+            mj_joint.axis = list(joint.axis)
+            if joint.type in ("revolute", "prismatic") and joint.limit is not None:
+                mj_joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+                mj_joint.range = [joint.limit.lower, joint.limit.upper]
+            else:
+                mj_joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+            if joint.limit is not None and joint.limit.effort > 0.0:
+                mj_joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                mj_joint.actfrcrange = [-joint.limit.effort, joint.limit.effort]
+            mj_joint.damping = [joint.dynamics.damping, 0.0, 0.0]
+            mj_joint.frictionloss = joint.dynamics.friction
+            joints[joint.name] = mj_joint.name
+        link_props = props.get(link.name)
+        for i, visual in enumerate(link.visuals):
+            geom = _add_geom(
+                body,
+                spec,
+                visual.geometry,
+                visual.origin.matrix(),
+                f"{body_name}:visual{i}",
+                meshes,
+                prefix,
+            )
+            rgba = None
+            if link_props is not None and link_props.rgba is not None:
+                rgba = link_props.rgba
+            elif visual.material is not None and visual.material.rgba is not None:
+                rgba = visual.material.rgba
+            geom.rgba = list(rgba or _DEFAULT_RGBA)
+            geom.group = 1
+            geom.contype = 0
+            geom.conaffinity = 0
+        for i, collision in enumerate(link.collisions):
+            geom = _add_geom(
+                body,
+                spec,
+                collision.geometry,
+                collision.origin.matrix(),
+                f"{body_name}:collision{i}",
+                meshes,
+                prefix,
+            )
+            geom.group = 3
+            geom.contype = 1
+            geom.conaffinity = 1
+            if link_props is not None and link_props.mu1 is not None:
+                friction = list(geom.friction)
+                friction[0] = link_props.mu1
+                geom.friction = friction
+        if link.collisions:
+            colliding.append(body_name)
+    for joint in urdf.joints.values():
+        if joint.mimic is not None and joint.name in joints and joint.mimic.joint in joints:
+            equality = spec.add_equality(
+                type=mujoco.mjtEq.mjEQ_JOINT,
+                name1=joints[joint.name],
+                name2=joints[joint.mimic.joint],
+                name=f"{prefix}{joint.name}:mimic",
+            )
+            data = list(equality.data)
+            data[:5] = [joint.mimic.offset, joint.mimic.multiplier, 0.0, 0.0, 0.0]
+            equality.data = data
+    for a, b in itertools.combinations(colliding, 2):
+        spec.add_exclude(bodyname1=a, bodyname2=b)
+    cameras: dict[str, str] = {}
+    sites: dict[str, str] = {}
+    for camera in robot.gazebo.cameras:
+        body = mj_bodies[camera.link]
+        t_link_sensor = camera.pose.matrix()
+        t_link_cam = t_link_sensor.copy()
+        t_link_cam[:3, :3] = t_link_sensor[:3, :3] @ R_SENSOR_MJCAM
+        cam = body.add_camera(name=f"{prefix}{camera.name}")
+        cam.pos = t_link_cam[:3, 3].tolist()
+        cam.quat = list(matrix_to_quat_wxyz(t_link_cam[:3, :3]))
+        configure_mujoco_camera(cam, camera)
+        cameras[camera.name] = cam.name
+        sites[camera.name] = _add_site(body, f"{prefix}{camera.name}:site", t_link_sensor)
+    imu_sensors: dict[str, tuple[str, str, str]] = {}
+    for imu in robot.gazebo.imus:
+        body = mj_bodies[imu.link]
+        site = _add_site(body, f"{prefix}{imu.name}:site", imu.pose.matrix())
+        sites[imu.name] = site
+        names = (
+            f"{prefix}{imu.name}:gyro",
+            f"{prefix}{imu.name}:accel",
+            f"{prefix}{imu.name}:quat",
+        )
+        for sensor_name, sensor_type in zip(
+            names,
+            (
+                mujoco.mjtSensor.mjSENS_GYRO,
+                mujoco.mjtSensor.mjSENS_ACCELEROMETER,
+                mujoco.mjtSensor.mjSENS_FRAMEQUAT,
+            ),
+            strict=True,
+        ):
+            spec.add_sensor(
+                name=sensor_name, type=sensor_type, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site
+            )
+        imu_sensors[imu.name] = names
+    return RobotHandles(
+        prefix=prefix,
+        root_body=bodies[urdf.root],
+        free_joint=free_joint,
+        bodies=bodies,
+        joints=joints,
+        cameras=cameras,
+        sites=sites,
+        imu_sensors=imu_sensors,
+    )
+
+
+def _add_site(body: Any, name: str, t_link_site: NDArray[np.float64]) -> str:
+    site = body.add_site(name=name)
+    site.pos = t_link_site[:3, 3].tolist()
+    site.quat = list(matrix_to_quat_wxyz(t_link_site[:3, :3]))
+    site.group = 4
+    site.size = [0.005, 0.005, 0.005]
+    return str(site.name)
