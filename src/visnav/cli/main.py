@@ -22,6 +22,11 @@ VERBS: dict[str, tuple[str, str]] = {
     "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
     "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),
     "calibrate": ("visnav.cli.calibrate", "chessboard camera calibration -> camera_info YAML"),
+    "view": ("visnav.cli.view", "show live topics or a bag in Rerun (RViz); web viewer option"),
+    "image": ("visnav.cli.image", "show one image topic; --snapshot writes a PNG (rqt_image_view)"),
+    "launch": ("visnav.cli.launch", "start a launch file: YAML or roslaunch XML (ros2 launch)"),
+    "bag": ("visnav.cli.bag", "record, inspect, play and convert bags (ros2 bag)"),
+    "sim": ("visnav.cli.sim", "simulate a world and a robot (MuJoCo), sensors on the graph"),
 }
 
 

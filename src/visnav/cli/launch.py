@@ -1,0 +1,123 @@
+"""``visnav launch FILE [name:=value ...]``: start a launch file (ros2 launch / roslaunch)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+from types import FrameType
+
+from visnav.launch.errors import LaunchArgError
+
+__all__ = ["add_arguments", "cmd_launch", "parse_packages"]
+
+_LOG = logging.getLogger("visnav.launch")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``launch`` arguments."""
+    parser.description = (
+        "Start the nodes of a visnav YAML launch file or a roslaunch XML file (.launch). "
+        "Arguments are name:=value. Ctrl-C stops every node (SIGINT, then SIGTERM, then "
+        "SIGKILL). Format: docs/launch.md."
+    )
+    parser.add_argument("file", help="launch file (.yaml, .launch/.xml) or a built-in one")
+    parser.add_argument(
+        "launch_args",
+        nargs=argparse.REMAINDER,
+        metavar="name:=value",
+        help="launch arguments (options may come after them too)",
+    )
+    _add_options(parser)
+    parser.set_defaults(func=cmd_launch)
+
+
+def _add_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--print",
+        action="store_true",
+        dest="print_only",
+        help="print the resolved nodes, params and remaps, and exit without starting anything",
+    )
+    parser.add_argument("--json", action="store_true", help="with --print: print JSON")
+    parser.add_argument(
+        "--package",
+        action="append",
+        default=[],
+        metavar="NAME=DIR",
+        help="directory of a ROS package for $(find NAME) (repeatable)",
+    )
+    parser.add_argument(
+        "--sigterm-timeout",
+        type=float,
+        default=5.0,
+        metavar="S",
+        help="seconds a node has to stop after SIGINT before SIGTERM (then as long to SIGKILL)",
+    )
+
+
+def _late_options(args: argparse.Namespace) -> list[str]:
+    """Read options given after FILE (argparse leaves them in the REMAINDER); return the rest."""
+    late = argparse.ArgumentParser(prog="visnav launch", add_help=False)
+    _add_options(late)
+    found, rest = late.parse_known_args(args.launch_args)
+    defaults = late.parse_args([])
+    for key, value in vars(found).items():
+        if value != getattr(defaults, key):
+            current = getattr(args, key)
+            setattr(args, key, current + value if isinstance(value, list) else value)
+    return rest
+
+
+def parse_packages(items: list[str]) -> dict[str, str]:
+    """Parse ``--package NAME=DIR`` options.
+
+    Raises:
+        LaunchArgError: an item that is not ``NAME=DIR``.
+    """
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            msg = (
+                f"--package {item!r}: expected NAME=DIR (e.g. --package my_robot=~/ws/src/my_robot)"
+            )
+            raise LaunchArgError(msg)
+        out[name] = path
+    return out
+
+
+def cmd_launch(args: argparse.Namespace) -> int:
+    """``launch``."""
+    from visnav.launch.loader import load_launch, parse_launch_args
+    from visnav.launch.supervisor import Launcher
+
+    launch_args = _late_options(args)
+    description = load_launch(
+        args.file, parse_launch_args(launch_args), packages=parse_packages(args.package)
+    )
+    if args.print_only:
+        print(description.dumps() if args.json else description.format())
+        return 0
+    for note in description.notes:
+        _LOG.warning("%s", note)
+    launcher = Launcher(
+        description,
+        domain=args.domain,
+        sigterm_timeout=args.sigterm_timeout,
+        sigkill_timeout=args.sigterm_timeout,
+    )
+    interrupted: list[int] = []
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        del frame
+        interrupted.append(signum)
+        launcher.request_stop()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        code = launcher.run()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    return 130 if interrupted else code

@@ -1,0 +1,689 @@
+"""visnav's YAML launch format: args, substitutions, includes, groups and nodes.
+
+The layout follows ROS 2's YAML launch files (a ``launch:`` list of one-key
+entries, ``$(...)`` substitutions, ``if`` / ``unless``); nodes are visnav's own
+(``exec: image_proc`` or ``exec: my_pkg.nodes:MyNode``) and say whether they
+share the launch process or run in their own. docs/launch.md describes every
+key; :func:`load_yaml_launch` is the entry point.
+
+Entries are evaluated in order, as ROS 2 does: an ``arg`` or ``let`` is visible
+to the entries after it; a ``group`` scopes its ``let`` values, namespace,
+remaps and defaults to its children. An included file sees only the args given
+to it (and, with ``pass_all_args: true``, every arg in scope), as roslaunch.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from visnav.graph.names import InvalidNameError, validate_namespace, validate_node_name
+from visnav.launch.description import (
+    PROCESS_KINDS,
+    ArgInfo,
+    LaunchDescription,
+    NodeSpec,
+    check_param_value,
+)
+from visnav.launch.errors import LaunchArgError, LaunchParseError, where
+from visnav.launch.static_tf import StaticTransformError, static_transform_params_from_args
+from visnav.launch.substitutions import SubstitutionContext, has_substitution, substitute
+from visnav.node_registry import UnknownNodeError, check_node_name
+
+__all__ = [
+    "ENTRY_KEYS",
+    "IncludeLoader",
+    "Scope",
+    "join_namespace",
+    "load_yaml_launch",
+    "parse_bool",
+    "parse_yaml_text",
+]
+
+ENTRY_KEYS: Mapping[str, frozenset[str]] = {
+    "arg": frozenset({"name", "default", "description", "choices", "if", "unless"}),
+    "let": frozenset({"name", "value", "if", "unless"}),
+    "include": frozenset({"file", "args", "pass_all_args", "namespace", "if", "unless"}),
+    "group": frozenset(
+        {"namespace", "remap", "use_sim_time", "process", "children", "if", "unless"}
+    ),
+    "node": frozenset(
+        {
+            "exec",
+            "name",
+            "namespace",
+            "params",
+            "remap",
+            "args",
+            "use_sim_time",
+            "process",
+            "respawn",
+            "respawn_delay",
+            "respawn_max_retries",
+            "required",
+            "if",
+            "unless",
+        }
+    ),
+}
+
+# Built-in nodes that also accept a command line (``args:``), translated into parameters.
+_ARG_TRANSLATORS: Mapping[str, Callable[[Sequence[str]], dict[str, Any]]] = {
+    "static_transform_publisher": static_transform_params_from_args,
+}
+
+_TRUE = ("true", "1", "yes", "on")
+_FALSE = ("false", "0", "no", "off")
+
+
+# --------------------------------------------------------------------------- YAML with lines
+class _Map(dict[str, Any]):
+    """A YAML mapping that remembers its line."""
+
+    line: int | None = None
+
+
+class _LineLoader(yaml.SafeLoader):
+    """SafeLoader whose mappings are :class:`_Map` with their line; duplicate keys refused."""
+
+
+def _construct_map(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
+    loader.flatten_mapping(node)
+    result = _Map()
+    result.line = node.start_mark.line + 1
+    for key_node, value_node in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        if key in result:
+            mark = key_node.start_mark
+            msg = f"{mark.name}:{mark.line + 1}: key {key!r} appears twice in one mapping"
+            raise LaunchParseError(msg)
+        result[key] = loader.construct_object(value_node, deep=True)
+    return result
+
+
+_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
+
+
+def parse_yaml_text(text: str, source: str) -> Any:
+    """Parse YAML, keeping mapping lines; errors name the file and line.
+
+    Raises:
+        LaunchParseError: the text is not valid YAML.
+    """
+    loader = _LineLoader(text)
+    loader.name = source
+    try:
+        return loader.get_single_data()
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = f":{mark.line + 1}" if mark is not None else ""
+        problem = " ".join(str(exc.problem or exc.context or "invalid YAML").split())
+        msg = f"{source}{line}: the launch file does not parse as YAML: {problem}"
+        raise LaunchParseError(msg) from None
+    except yaml.YAMLError as exc:
+        msg = f"{source}: the launch file does not parse as YAML: {exc}"
+        raise LaunchParseError(msg) from None
+    finally:
+        loader.dispose()
+
+
+# --------------------------------------------------------------------------- helpers
+def parse_bool(value: Any, what: str, prefix: str = "") -> bool:
+    """Interpret a launch value as a bool (``true/false/1/0/yes/no/on/off``, any case).
+
+    Raises:
+        LaunchParseError: anything else.
+    """
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in _TRUE:
+        return True
+    if text in _FALSE:
+        return False
+    msg = f"{prefix}{what} is {value!r}: expected true or false"
+    raise LaunchParseError(msg)
+
+
+def join_namespace(base: str, namespace: str, prefix: str = "") -> str:
+    """Push ``namespace`` onto ``base`` as ROS does (absolute replaces, relative appends).
+
+    Raises:
+        LaunchParseError: the result is not a valid namespace.
+    """
+    namespace = namespace.strip()
+    if not namespace:
+        result = base
+    elif namespace.startswith("/"):
+        result = namespace
+    else:
+        result = f"{base.rstrip('/')}/{namespace}"
+    if len(result) > 1:
+        result = result.rstrip("/")
+    try:
+        validate_namespace(result)
+    except InvalidNameError as exc:
+        raise LaunchParseError(f"{prefix}namespace {namespace!r}: {exc}") from None
+    return result
+
+
+def _arg_text(value: Any) -> str:
+    """Launch arguments are strings; YAML scalars are written back the way ROS prints them."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return "" if value is None else str(value)
+
+
+def _typed(text: str) -> Any:
+    """Give a substituted string its YAML type (``"10"`` -> 10, ``"true"`` -> True)."""
+    if not text.strip():
+        return text
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+    if isinstance(value, bool | int | float | str):
+        return value
+    if isinstance(value, list) and all(isinstance(v, bool | int | float | str) for v in value):
+        return value
+    return text
+
+
+def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, Mapping):
+        for key, sub in value.items():
+            _flatten(f"{prefix}.{key}" if prefix else str(key), sub, out)
+    else:
+        out[prefix] = value
+
+
+def _suggest_key(key: str, allowed: Iterable[str]) -> str:
+    close = difflib.get_close_matches(key, list(allowed), n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+@dataclass
+class Scope:
+    """What an entry inherits from the entries and groups around it.
+
+    Attributes:
+        ctx: substitution context (args in scope, file, line).
+        namespace: the pushed namespace.
+        remaps: group remaps, applied after a node's own.
+        use_sim_time: group default for nodes.
+        process: group default for nodes.
+        passed_through: args an include passed with ``pass_all_args``: the included file
+            need not declare them (as roslaunch).
+    """
+
+    ctx: SubstitutionContext
+    namespace: str = "/"
+    remaps: tuple[tuple[str, str], ...] = ()
+    use_sim_time: bool | None = None
+    process: str | None = None
+    passed_through: frozenset[str] = frozenset()
+
+    def child(self) -> Scope:
+        """A scope for a group: its own copy of the args."""
+        return replace(self, ctx=replace(self.ctx, args=dict(self.ctx.args)))
+
+
+IncludeLoader = Callable[[str, Mapping[str, str], Scope, tuple[str, ...]], list[NodeSpec]]
+"""Loads an included file: (path, args, scope of the include, include chain) -> nodes."""
+
+
+# --------------------------------------------------------------------------- interpreter
+class _YamlInterpreter:
+    def __init__(
+        self,
+        path: Path,
+        given: Mapping[str, str],
+        scope: Scope,
+        *,
+        chain: tuple[str, ...],
+        include: IncludeLoader,
+        description: LaunchDescription | None,
+    ) -> None:
+        self.path = path
+        self.source = str(path)
+        self.given = dict(given)
+        self.declared: dict[str, int | None] = {}
+        self.scope = scope
+        self.chain = chain
+        self.include_loader = include
+        self.description = description  # top-level file only: records args
+        self.nodes: list[NodeSpec] = []
+
+    # ---------------------------------------------------------------- plumbing
+    def at(self, line: int | None) -> str:
+        return where(self.source, line)
+
+    def sub(self, value: Any, scope: Scope, line: int | None) -> Any:
+        """Substitute every string inside ``value`` (typed again if it had ``$(``)."""
+        scope.ctx.line = line
+        if isinstance(value, str):
+            if not has_substitution(value):
+                return value
+            return _typed(substitute(value, scope.ctx))
+        if isinstance(value, list):
+            return [self.sub(v, scope, line) for v in value]
+        if isinstance(value, Mapping):
+            return {k: self.sub(v, scope, line) for k, v in value.items()}
+        return value
+
+    def text(self, value: Any, scope: Scope, line: int | None) -> str:
+        """Substitute and return a string."""
+        scope.ctx.line = line
+        return substitute(_arg_text(value), scope.ctx)
+
+    def body(self, kind: str, value: Any, line: int | None) -> _Map:
+        if not isinstance(value, _Map):
+            msg = (
+                f"{self.at(line)}'{kind}' needs a mapping of keys "
+                f"({', '.join(sorted(ENTRY_KEYS[kind]))}), got {value!r}"
+            )
+            raise LaunchParseError(msg)
+        for key in value:
+            if key not in ENTRY_KEYS[kind]:
+                msg = (
+                    f"{self.at(value.line)}unknown key {key!r} in '{kind}'"
+                    f"{_suggest_key(str(key), ENTRY_KEYS[kind])} ('{kind}' takes "
+                    f"{', '.join(sorted(ENTRY_KEYS[kind]))})"
+                )
+                if kind == "node" and key in ("pkg", "executable", "plugin"):
+                    msg += "; name the node with 'exec: <built-in name>' or 'exec: module:Class'"
+                raise LaunchParseError(msg)
+        return value
+
+    def enabled(self, body: _Map, scope: Scope) -> bool:
+        if "if" in body and not parse_bool(
+            self.text(body["if"], scope, body.line), "'if'", self.at(body.line)
+        ):
+            return False
+        return not (
+            "unless" in body
+            and parse_bool(
+                self.text(body["unless"], scope, body.line), "'unless'", self.at(body.line)
+            )
+        )
+
+    def required(self, body: _Map, key: str, kind: str) -> Any:
+        if key not in body or body[key] is None or body[key] == "":
+            msg = f"{self.at(body.line)}'{kind}' needs '{key}'"
+            raise LaunchParseError(msg)
+        return body[key]
+
+    # ---------------------------------------------------------------- entries
+    def run(self, entries: Any, line: int | None) -> list[NodeSpec]:
+        self.entries(entries, self.scope, line)
+        unused = sorted(set(self.given) - set(self.declared) - self.scope.passed_through)
+        if unused:
+            name = unused[0]
+            hint = _suggest_key(name, self.declared)
+            declared = ", ".join(sorted(self.declared)) or "none"
+            msg = (
+                f"{self.source}: argument {name}:={self.given[name]!r} was given but the file "
+                f"declares no arg {name!r}{hint} (declared: {declared})"
+            )
+            raise LaunchArgError(msg)
+        return self.nodes
+
+    def entries(self, entries: Any, scope: Scope, line: int | None) -> None:
+        if entries is None:
+            return
+        if not isinstance(entries, list):
+            msg = f"{self.at(line)}expected a list of entries (- node: ...), got {entries!r}"
+            raise LaunchParseError(msg)
+        for entry in entries:
+            if not isinstance(entry, _Map) or len(entry) != 1:
+                msg = (
+                    f"{self.at(getattr(entry, 'line', line))}each entry is one of "
+                    f"{', '.join(ENTRY_KEYS)} with its keys below it (e.g. '- node: {{exec: "
+                    f"image_proc}}'), got {entry!r}"
+                )
+                raise LaunchParseError(msg)
+            ((kind, value),) = entry.items()
+            if kind not in ENTRY_KEYS:
+                hint = _suggest_key(str(kind), ENTRY_KEYS)
+                msg = (
+                    f"{self.at(entry.line)}unknown entry {kind!r}{hint}"
+                    f" (entries: {', '.join(ENTRY_KEYS)})"
+                )
+                raise LaunchParseError(msg)
+            body = self.body(kind, value, entry.line)
+            body.line = entry.line  # report the '- node:' line, where the entry starts
+            if not self.enabled(body, scope):
+                if kind == "arg":
+                    self.declared.setdefault(str(body.get("name")), body.line)
+                continue
+            getattr(self, f"do_{kind}")(body, scope)
+
+    def do_arg(self, body: _Map, scope: Scope) -> None:
+        name = str(self.required(body, "name", "arg"))
+        if name in self.declared:
+            msg = (
+                f"{self.at(body.line)}arg {name!r} is declared twice (first at line "
+                f"{self.declared[name]}); declare it once"
+            )
+            raise LaunchParseError(msg)
+        self.declared[name] = body.line
+        description = _arg_text(body.get("description", ""))
+        default: str | None = None
+        if "default" in body:
+            default = self.text(body["default"], scope, body.line)
+        if name in self.given:
+            value = self.given[name]
+        elif default is not None:
+            value = default
+        else:
+            unused = [g for g in self.given if g not in self.declared]
+            close = difflib.get_close_matches(name, unused, n=1)
+            hint = f"; you gave {close[0]}:=..., did you mean {name}:=...?" if close else ""
+            msg = (
+                f"{self.at(body.line)}missing arg {name!r} (no default"
+                + (f": {description}" if description else "")
+                + f"): give it as {name}:=VALUE{hint}"
+            )
+            raise LaunchArgError(msg)
+        if "choices" in body:
+            choices = [_arg_text(c) for c in body["choices"] or []]
+            if value not in choices:
+                close = difflib.get_close_matches(value, choices, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                msg = (
+                    f"{self.at(body.line)}arg {name!r} is {value!r}: expected one of "
+                    f"{', '.join(choices)}{hint}"
+                )
+                raise LaunchArgError(msg)
+        scope.ctx.args[name] = value
+        if self.description is not None:
+            self.description.args[name] = ArgInfo(name, value, default, description)
+
+    def do_let(self, body: _Map, scope: Scope) -> None:
+        name = str(self.required(body, "name", "let"))
+        scope.ctx.args[name] = self.text(body.get("value", ""), scope, body.line)
+
+    def do_group(self, body: _Map, scope: Scope) -> None:
+        inner = scope.child()
+        line = body.line
+        if "namespace" in body:
+            ns = self.text(body["namespace"], scope, line)
+            inner.namespace = join_namespace(scope.namespace, ns, self.at(line))
+        if "remap" in body:
+            inner.remaps = self.remaps(body["remap"], scope, line) + scope.remaps
+        if "use_sim_time" in body:
+            inner.use_sim_time = parse_bool(
+                self.text(body["use_sim_time"], scope, line), "use_sim_time", self.at(line)
+            )
+        if "process" in body:
+            inner.process = self.process(body["process"], scope, line)
+        self.entries(body.get("children"), inner, line)
+
+    def do_include(self, body: _Map, scope: Scope) -> None:
+        line = body.line
+        file_text = self.text(self.required(body, "file", "include"), scope, line)
+        path = Path(file_text)
+        if not path.is_absolute():
+            path = self.path.parent / path
+        args: dict[str, str] = {}
+        pass_all = parse_bool(
+            self.text(body.get("pass_all_args", False), scope, line), "pass_all_args", self.at(line)
+        )
+        if pass_all:
+            args.update(scope.ctx.args)
+        raw = body.get("args") or {}
+        if isinstance(raw, list):  # ROS 2 form: [{name: x, value: y}]
+            pairs = []
+            for item in raw:
+                if not isinstance(item, Mapping) or set(item) != {"name", "value"}:
+                    msg = f"{self.at(line)}include args: expected {{name:, value:}}, got {item!r}"
+                    raise LaunchParseError(msg)
+                pairs.append((item["name"], item["value"]))
+        elif isinstance(raw, Mapping):
+            pairs = list(raw.items())
+        else:
+            msg = f"{self.at(line)}include args: expected a mapping name: value, got {raw!r}"
+            raise LaunchParseError(msg)
+        for key, value in pairs:
+            args[str(key)] = self.text(value, scope, line)
+        inner = scope.child()
+        inner.passed_through = frozenset(scope.ctx.args) if pass_all else frozenset()
+        if "namespace" in body:
+            ns = self.text(body["namespace"], scope, line)
+            inner.namespace = join_namespace(scope.namespace, ns, self.at(line))
+        chain = (*self.chain, f"{self.source}:{line}")
+        self.nodes.extend(self.include_loader(str(path), args, inner, chain))
+
+    def remaps(self, value: Any, scope: Scope, line: int | None) -> tuple[tuple[str, str], ...]:
+        pairs: list[tuple[Any, Any]]
+        if isinstance(value, Mapping):
+            pairs = list(value.items())
+        elif isinstance(value, list):
+            pairs = []
+            for item in value:
+                if isinstance(item, str) and ":=" in item:
+                    a, _, b = item.partition(":=")
+                    pairs.append((a, b))
+                elif isinstance(item, Mapping) and set(item) == {"from", "to"}:
+                    pairs.append((item["from"], item["to"]))
+                else:
+                    msg = (
+                        f"{self.at(line)}remap entry {item!r}: expected 'from:=to' or "
+                        "{from: ..., to: ...}"
+                    )
+                    raise LaunchParseError(msg)
+        else:
+            msg = f"{self.at(line)}remap: expected a mapping from: to, got {value!r}"
+            raise LaunchParseError(msg)
+        return tuple((self.text(a, scope, line), self.text(b, scope, line)) for a, b in pairs)
+
+    def process(self, value: Any, scope: Scope, line: int | None) -> str:
+        kind = self.text(value, scope, line)
+        if kind not in PROCESS_KINDS:
+            msg = f"{self.at(line)}process is {kind!r}: expected 'shared' or 'own'"
+            raise LaunchParseError(msg)
+        return kind
+
+    def params(self, value: Any, scope: Scope, line: int | None, fqn: str) -> dict[str, Any]:
+        items = value if isinstance(value, list) else [value]
+        out: dict[str, Any] = {}
+        for item in items:
+            if isinstance(item, str):
+                out.update(self.param_file(self.text(item, scope, line), fqn, line))
+            elif isinstance(item, Mapping):
+                _flatten("", self.sub(item, scope, line), out)
+            else:
+                msg = (
+                    f"{self.at(line)}params: expected a mapping name: value or a parameter "
+                    f"file path, got {item!r}"
+                )
+                raise LaunchParseError(msg)
+        for key, val in out.items():
+            out[key] = check_param_value(key, val, self.at(line))
+        return out
+
+    def param_file(self, file_text: str, fqn: str, line: int | None) -> dict[str, Any]:
+        path = Path(file_text)
+        if not path.is_absolute():
+            path = self.path.parent / path
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            msg = f"{self.at(line)}parameter file {path}: cannot read it ({exc.strerror})"
+            raise LaunchParseError(msg) from None
+        data = parse_yaml_text(text, str(path))
+        if not isinstance(data, Mapping):
+            msg = f"{path}: a parameter file maps node names to {{ros__parameters: ...}}"
+            raise LaunchParseError(msg)
+        name = fqn.rsplit("/", 1)[-1]
+        keys = {fqn, fqn.lstrip("/"), name, "/**", "**", f"/**/{name}"}
+        out: dict[str, Any] = {}
+        for key, section in data.items():
+            if key not in keys:
+                continue
+            if not isinstance(section, Mapping) or "ros__parameters" not in section:
+                msg = (
+                    f"{path}:{getattr(section, 'line', '?')}: section {key!r} needs a "
+                    "'ros__parameters:' mapping (ROS 2 parameter file format)"
+                )
+                raise LaunchParseError(msg)
+            _flatten("", section["ros__parameters"] or {}, out)
+        return out
+
+    def do_node(self, body: _Map, scope: Scope) -> None:
+        line = body.line
+        at = self.at(line)
+        executable = self.text(self.required(body, "exec", "node"), scope, line)
+        try:
+            check_node_name(executable)
+        except UnknownNodeError as exc:
+            raise UnknownNodeError(f"{at}{exc}") from None
+        if "name" in body:
+            name = self.text(body["name"], scope, line)
+        else:
+            name = executable.rpartition(":")[2] if ":" in executable else executable
+            name = _snake(name)
+        try:
+            validate_node_name(name)
+        except InvalidNameError as exc:
+            raise LaunchParseError(f"{at}node name: {exc}") from None
+        namespace = scope.namespace
+        if "namespace" in body:
+            namespace = join_namespace(namespace, self.text(body["namespace"], scope, line), at)
+        fqn = f"{namespace.rstrip('/')}/{name}"
+        params: dict[str, Any] = {}
+        if "args" in body:
+            params.update(self.node_args(executable, body["args"], scope, line))
+        if "params" in body:
+            params.update(self.params(body["params"], scope, line, fqn))
+        remaps = scope.remaps
+        if "remap" in body:
+            remaps = self.remaps(body["remap"], scope, line) + scope.remaps
+        use_sim_time = scope.use_sim_time
+        if "use_sim_time" in body:
+            use_sim_time = parse_bool(
+                self.text(body["use_sim_time"], scope, line), "use_sim_time", at
+            )
+        respawn = parse_bool(self.text(body.get("respawn", False), scope, line), "respawn", at)
+        if "process" in body:
+            process = self.process(body["process"], scope, line)
+        else:
+            process = "own" if respawn else (scope.process or "shared")
+        delay = self.number(body.get("respawn_delay", 0.0), scope, line, "respawn_delay")
+        retries: int | None = None
+        if body.get("respawn_max_retries") is not None:
+            retries = int(
+                self.number(body["respawn_max_retries"], scope, line, "respawn_max_retries")
+            )
+        self.nodes.append(
+            NodeSpec(
+                executable=executable,
+                name=name,
+                namespace=namespace,
+                params=params,
+                remaps=remaps,
+                use_sim_time=use_sim_time,
+                process=process,
+                respawn=respawn,
+                respawn_delay=delay,
+                respawn_max_retries=retries,
+                required=parse_bool(
+                    self.text(body.get("required", False), scope, line), "required", at
+                ),
+                source=f"{self.source}:{line}",
+            )
+        )
+
+    def node_args(
+        self, executable: str, value: Any, scope: Scope, line: int | None
+    ) -> dict[str, Any]:
+        translate = _ARG_TRANSLATORS.get(executable)
+        if translate is None:
+            msg = (
+                f"{self.at(line)}node {executable!r} takes no 'args' (only "
+                f"{', '.join(_ARG_TRANSLATORS)} does): give 'params' instead"
+            )
+            raise LaunchParseError(msg)
+        words = value if isinstance(value, list) else self.text(value, scope, line).split()
+        words = [self.text(w, scope, line) for w in words]
+        try:
+            return translate(words)
+        except StaticTransformError as exc:
+            raise LaunchParseError(f"{self.at(line)}{exc}") from None
+
+    def number(self, value: Any, scope: Scope, line: int | None, what: str) -> float:
+        text = self.text(value, scope, line)
+        try:
+            return float(text)
+        except ValueError:
+            msg = f"{self.at(line)}{what} is {text!r}: expected a number"
+            raise LaunchParseError(msg) from None
+
+
+def _snake(name: str) -> str:
+    out: list[str] = []
+    for i, char in enumerate(name):
+        if char.isupper() and i > 0 and (name[i - 1].islower() or name[i - 1].isdigit()):
+            out.append("_")
+        out.append(char.lower())
+    text = "".join(out)
+    return text.removesuffix("_node") or text
+
+
+def load_yaml_launch(
+    path: str | os.PathLike[str],
+    args: Mapping[str, str],
+    scope: Scope,
+    *,
+    chain: tuple[str, ...],
+    include: IncludeLoader,
+    description: LaunchDescription | None = None,
+) -> list[NodeSpec]:
+    """Evaluate one YAML launch file; return its nodes (includes loaded through ``include``).
+
+    Args:
+        path: the launch file.
+        args: the arguments given to it (``name:=value`` or an include's ``args``).
+        scope: the namespace, remaps and defaults it inherits (its ``ctx.file`` is replaced).
+        chain: the include chain so far (``file:line`` of each include), for messages.
+        include: loads an included file (any format).
+        description: the top-level description, whose ``args`` this file fills (None for
+            included files).
+
+    Raises:
+        LaunchError: the file does not parse, or an entry is wrong (file and line given).
+    """
+    file = Path(path)
+    try:
+        text = file.read_text()
+    except OSError as exc:
+        via = f" (included from {chain[-1]})" if chain else ""
+        msg = f"{file}: cannot read the launch file ({exc.strerror}){via}"
+        raise LaunchParseError(msg) from None
+    data = parse_yaml_text(text, str(file))
+    if not isinstance(data, _Map) or "launch" not in data:
+        msg = (
+            f"{file}:1: a visnav launch file is a mapping with a 'launch:' list of entries "
+            "(see docs/launch.md)"
+        )
+        raise LaunchParseError(msg)
+    extra = [k for k in data if k != "launch"]
+    if extra:
+        msg = f"{file}:{data.line}: unknown top-level key {extra[0]!r}: only 'launch:' is allowed"
+        raise LaunchParseError(msg)
+    ctx = replace(scope.ctx, args={}, file=str(file), line=None)
+    interp = _YamlInterpreter(
+        file,
+        args,
+        replace(scope, ctx=ctx),
+        chain=chain,
+        include=include,
+        description=description,
+    )
+    return interp.run(data["launch"], data.line)
