@@ -1,0 +1,249 @@
+"""Where a recording goes: an ``.rrd`` file, the web viewer on 127.0.0.1, a native viewer.
+
+:func:`open_viewer` makes a ``rerun.RecordingStream`` with the chosen sinks:
+
+* ``save``: a ``FileSink`` (the ``.rrd`` opens in any Rerun viewer of the same version);
+* ``web``: a gRPC server *in this process* bound to 127.0.0.1 (``GrpcServerSink`` takes
+  a bind address) and Rerun's bundled web viewer (HTML + WebAssembly) served by the
+  ``rerun`` executable of the wheel, started with ``--bind 127.0.0.1``. The Python
+  ``rerun.serve_web_viewer`` has no bind address in rerun-sdk 0.41 and listens on
+  0.0.0.0, which is why the executable serves the page;
+* ``connect``: stream to a running viewer (``rerun+http://HOST:PORT/proxy``);
+* none of these: spawn the native viewer (needs a display).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.parse
+import uuid
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Any
+
+from visnav.viz._rerun import rr
+from visnav.viz.errors import VizError
+
+__all__ = ["LOOPBACK", "Viewer", "free_port", "open_viewer", "rerun_executable"]
+
+LOOPBACK = "127.0.0.1"
+"""The only address the web viewer and its gRPC server listen on."""
+
+
+def free_port(host: str = LOOPBACK) -> int:
+    """Return a TCP port that is free on ``host`` right now (the OS picks it)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def rerun_executable() -> Path:
+    """Return the ``rerun`` executable shipped in the rerun-sdk wheel (``$RERUN_CLI_PATH`` wins).
+
+    Raises:
+        VizError: the executable is missing.
+    """
+    override = os.environ.get("RERUN_CLI_PATH")
+    if override:
+        path = Path(override)
+    else:
+        spec = importlib.util.find_spec("rerun_cli")  # part of the rerun-sdk wheel
+        if spec is None or spec.origin is None:
+            raise VizError(
+                "the rerun-sdk wheel has no rerun_cli package: reinstall the viewer extra "
+                "(pip install --force-reinstall 'visnav[viz]')"
+            )
+        name = "rerun.exe" if os.name == "nt" else "rerun"
+        path = Path(spec.origin).parent / name
+    if not path.is_file():
+        text = (
+            f"the rerun executable {str(path)!r} is missing: reinstall the viewer extra "
+            "(pip install --force-reinstall 'visnav[viz]')"
+        )
+        raise VizError(text)
+    return path
+
+
+def _wait_listening(port: int, proc: subprocess.Popen[bytes], log: Path, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            tail = log.read_text(errors="replace")[-2000:]
+            text = f"the Rerun web viewer exited with code {proc.returncode}: {tail}"
+            raise VizError(text)
+        with contextlib.suppress(OSError), socket.create_connection((LOOPBACK, port), timeout=0.2):
+            return
+        time.sleep(0.05)
+    text = f"the Rerun web viewer did not listen on {LOOPBACK}:{port} within {timeout_s} s"
+    raise VizError(text)
+
+
+class Viewer:
+    """A Rerun recording and the outputs it streams to; close it (or use ``with``).
+
+    Attributes:
+        recording: the ``rerun.RecordingStream`` to log to (give it to a
+            :class:`~visnav.viz.RerunSink`).
+        url: the web viewer's address (``--web``), else None.
+        grpc_url: the gRPC address viewers connect to (``--web``), else None.
+        save: the ``.rrd`` file written, else None.
+        web_process: the process serving the web viewer page, else None.
+    """
+
+    def __init__(
+        self,
+        recording: rr.RecordingStream,
+        *,
+        url: str | None = None,
+        grpc_url: str | None = None,
+        save: Path | None = None,
+        web_process: subprocess.Popen[bytes] | None = None,
+        web_log: IO[bytes] | None = None,
+    ) -> None:
+        self.recording = recording
+        self.url = url
+        self.grpc_url = grpc_url
+        self.save = save
+        self.web_process = web_process
+        self._web_log = web_log
+        self._closed = False
+
+    def close(self) -> None:
+        """Flush the recording, finish the file, stop the servers (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self.recording.flush()
+            self.recording.disconnect()
+        finally:
+            if self.web_process is not None:
+                self.web_process.terminate()
+                try:
+                    self.web_process.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    self.web_process.kill()
+                    self.web_process.wait()
+            if self._web_log is not None:
+                self._web_log.close()
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def _has_display() -> bool:
+    if sys.platform.startswith("linux"):
+        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return True
+
+
+def open_viewer(
+    *,
+    application_id: str = "visnav",
+    save: str | Path | None = None,
+    web: bool = False,
+    web_port: int | None = None,
+    grpc_port: int | None = None,
+    connect: str | None = None,
+    spawn: bool | None = None,
+    server_memory_limit: str = "25%",
+    startup_timeout_s: float = 20.0,
+) -> Viewer:
+    """Create a recording streaming to the chosen outputs.
+
+    Args:
+        application_id: Rerun's application id (groups recordings in the viewer).
+        save: write the recording to this ``.rrd`` file.
+        web: serve the web viewer and a gRPC server, both on 127.0.0.1 only.
+        web_port: port of the web viewer page (default: a free one).
+        grpc_port: port of the gRPC server (default: a free one).
+        connect: stream to a running viewer at this ``rerun+http://.../proxy`` URL.
+        spawn: start the native viewer; default: when nothing else is asked for.
+        server_memory_limit: what the gRPC server keeps for late viewers ("25%", "2GB").
+        startup_timeout_s: how long to wait for the web viewer to listen.
+
+    Returns:
+        The :class:`Viewer`; its ``url`` is the page to open with ``web``.
+
+    Raises:
+        VizError: a bad path, no display for the native viewer, a viewer that fails to start.
+    """
+    rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    sinks: list[Any] = []
+    save_path: Path | None = None
+    if save is not None:
+        save_path = Path(save)
+        if save_path.suffix != ".rrd":
+            text = f"--save {str(save_path)!r}: a Rerun recording file must end in .rrd"
+            raise VizError(text)
+        if not save_path.parent.is_dir():
+            text = f"--save {str(save_path)!r}: directory {str(save_path.parent)!r} does not exist"
+            raise VizError(text)
+        sinks.append(rr.FileSink(save_path))
+    if connect is not None:
+        sinks.append(rr.GrpcSink(connect))
+    url = grpc_url = None
+    process: subprocess.Popen[bytes] | None = None
+    log_file: IO[bytes] | None = None
+    if web:
+        gport = grpc_port or free_port()
+        server = rr.GrpcServerSink(
+            LOOPBACK, gport, server_memory_limit=server_memory_limit, newest_first=False
+        )
+        sinks.append(server)
+        grpc_url = f"rerun+http://{LOOPBACK}:{gport}/proxy"
+    want_spawn = spawn if spawn is not None else not sinks
+    if want_spawn and not _has_display():
+        text = (
+            "no display for the native Rerun viewer: use --web (browser at 127.0.0.1) "
+            "or --save FILE.rrd"
+        )
+        raise VizError(text)
+    if sinks:
+        rec.set_sinks(*sinks)
+    if want_spawn:
+        rec.spawn()
+    if web and grpc_url is not None:
+        wport = web_port or free_port()
+        log_path = Path(tempfile.gettempdir()) / f"visnav_rerun_web_{os.getpid()}_{wport}.log"
+        log_file = log_path.open("wb")
+        cmd = [
+            str(rerun_executable()),
+            "--serve-web",
+            "--bind",
+            LOOPBACK,
+            "--web-viewer-port",
+            str(wport),
+            grpc_url,
+        ]
+        process = subprocess.Popen(cmd, stdout=log_file, stderr=subprocess.STDOUT)
+        try:
+            _wait_listening(wport, process, log_path, startup_timeout_s)
+        except VizError:
+            process.kill()
+            process.wait()
+            log_file.close()
+            rec.disconnect()
+            raise
+        url = f"http://{LOOPBACK}:{wport}/?url={urllib.parse.quote(grpc_url, safe='')}"
+    return Viewer(
+        rec, url=url, grpc_url=grpc_url, save=save_path, web_process=process, web_log=log_file
+    )
