@@ -18,6 +18,7 @@ __all__ = ["build_parser", "main"]
 
 # verb -> (module, help)
 VERBS: dict[str, tuple[str, str]] = {
+    "run": ("visnav.cli.run", "run a built-in scenario: car (office) or drone (forest)"),
     "topic": ("visnav.cli.topic", "inspect and publish topics (ros2 topic)"),
     "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
     "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),

@@ -39,6 +39,9 @@ __all__ = [
 ]
 
 
+_WARN_AFTER_FRAMES = 10
+
+
 class _PerceptionNode(Node):
     def __init__(self, name: str, **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
@@ -167,6 +170,7 @@ class DepthImageToLaserScanNode(_PerceptionNode):
             output_frame_id=str(self.declare_parameter("output_frame", "camera_depth_frame").value),
         )
         self._info: CameraInfo | None = None
+        self._waiting = 0
         self._pub = self.create_publisher(LaserScan, "scan", qos_profile_sensor_data)
         self.create_subscription(
             CameraInfo, "depth_camera_info", self._on_info, qos_profile_sensor_data
@@ -178,10 +182,12 @@ class DepthImageToLaserScanNode(_PerceptionNode):
 
     def _on_depth(self, msg: Image) -> None:
         if self._info is None:
-            if "no camera_info" not in self._reported:
-                self._reported.add("no camera_info")
+            self._waiting += 1
+            # A publisher that sends the image just before its camera_info (as Gazebo does)
+            # loses the first frame; only a stream that never brings camera_info is reported.
+            if self._waiting == _WARN_AFTER_FRAMES:
                 self.get_logger().warning(
-                    "depth image received before any camera_info on "
+                    f"{self._waiting} depth images received but no camera_info on "
                     f"{self.resolve_topic_name('depth_camera_info')}; waiting for it"
                 )
             return

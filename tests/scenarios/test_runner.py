@@ -1,0 +1,71 @@
+"""``visnav run``: a short car run writes a summary, a bag and the topic table."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from visnav.bag import bag_info
+from visnav.graph import Context
+from visnav.scenarios.runner import ScenarioError, format_summary, run_scenario
+
+
+def test_short_car_run_summary_and_bag(tmp_path: Path) -> None:
+    with Context(transport="local") as ctx:
+        summary = run_scenario(
+            "car", duration_s=0.5, out=tmp_path / "run", context=ctx, progress=None
+        )
+    on_disk = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert on_disk == summary
+    for key in (
+        "scenario",
+        "seed",
+        "sim_duration_s",
+        "wall_duration_s",
+        "real_time_factor",
+        "bag",
+        "topics",
+    ):
+        assert key in summary
+    assert summary["scenario"] == "car"
+    assert summary["sim_duration_s"] == pytest.approx(0.5, abs=0.01)
+    topics = summary["topics"]
+    assert topics["/camera/image_raw"]["type"] == "sensor_msgs/msg/Image"
+    assert topics["/camera/image_raw"]["rate_hz"] == pytest.approx(30.0, rel=0.05)
+    assert topics["/scan"]["count"] >= 8
+    info = bag_info(summary["bag"])
+    recorded = {t.name if hasattr(t, "name") else t for t in info.to_dict()["topics"]}
+    assert "/ground_truth/odom" in str(recorded)
+    assert "/camera/image_raw" not in str(recorded)  # bulky topics left out by default
+    assert "scenario car" in format_summary(summary)
+
+
+def test_unknown_scenario_suggests() -> None:
+    with pytest.raises(ScenarioError, match="did you mean car"):
+        run_scenario("cat", duration_s=1.0)
+
+
+def test_cli_errors_in_one_line(tmp_path: Path) -> None:
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "visnav.cli.main",
+            "run",
+            "car",
+            "--duration",
+            "-1",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert out.returncode == 1
+    assert out.stderr.strip().splitlines()[-1].startswith("error: duration is -1.0")
