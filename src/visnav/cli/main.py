@@ -23,11 +23,14 @@ VERBS: dict[str, tuple[str, str]] = {
     "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
     "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),
     "calibrate": ("visnav.cli.calibrate", "chessboard camera calibration -> camera_info YAML"),
+    "slam": ("visnav.cli.slam", "offline RGB-D SLAM on a TUM folder or a bag -> TUM trajectory"),
+    "eval": ("visnav.cli.eval", "trajectory errors ATE / RPE of TUM files (evo's numbers)"),
     "view": ("visnav.cli.view", "show live topics or a bag in Rerun (RViz); web viewer option"),
     "image": ("visnav.cli.image", "show one image topic; --snapshot writes a PNG (rqt_image_view)"),
     "launch": ("visnav.cli.launch", "start a launch file: YAML or roslaunch XML (ros2 launch)"),
     "bag": ("visnav.cli.bag", "record, inspect, play and convert bags (ros2 bag)"),
     "sim": ("visnav.cli.sim", "simulate a world and a robot (MuJoCo), sensors on the graph"),
+    "doctor": ("visnav.cli.doctor", "find data-chain faults in a live graph or a bag, with fixes"),
 }
 
 
