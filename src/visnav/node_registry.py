@@ -29,6 +29,7 @@ BUILTIN_NODES: Mapping[str, str] = {
     "point_cloud_xyzrgb": "visnav.perception.nodes:PointCloudXyzrgbNode",
     "convert_metric": "visnav.perception.nodes:ConvertMetricNode",
     "depthimage_to_laserscan": "visnav.perception.nodes:DepthImageToLaserScanNode",
+    "slam": "visnav.slam.node:SlamNode",
     "static_transform_publisher": "visnav.launch.static_tf:StaticTransformPublisherNode",
 }
 

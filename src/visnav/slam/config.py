@@ -1,0 +1,126 @@
+"""Settings and per-frame results of the SLAM system."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["SlamConfig", "TrackResult", "TrackingState"]
+
+TrackingState = Literal["uninitialized", "ok", "lost"]
+
+
+@dataclass(frozen=True)
+class SlamConfig:
+    """Parameters of :class:`~visnav.slam.SlamSystem` (defaults suit 640x480 RGB-D).
+
+    Features: ``n_features``, ``scale_factor``, ``n_levels``, ``fast_threshold``;
+    depth is used between ``min_depth`` and ``max_depth`` metres; uint16 depth is
+    divided by ``depth_scale`` (None: 1000, ROS millimetres).
+
+    Depth weighting: ``depth_noise`` k models the depth standard deviation as
+    ``k * z^2`` metres (structured-light sensors ~0.0015, simulated depth less);
+    it sets the virtual stereo baseline ``bf = 1 / k`` used by the optimisers.
+    ``close_depth`` (m) is the limit of "close" points in the keyframe rule.
+
+    Tracking: ``search_radius`` (px) for the motion-model search, ``local_radius``
+    for the local-map search, ``min_inliers`` to count a frame as tracked
+    (``reloc_min_inliers`` right after relocalisation), ``local_keyframes`` in the
+    local map.
+
+    Keyframes: a new one when ``kf_max_frames`` frames passed, tracked points fall
+    below ``kf_ratio`` of the reference keyframe's, close tracked points run low
+    (RGB-D rule of ORB-SLAM2), or the camera moved ``kf_translation`` m /
+    ``kf_rotation_deg`` since the last keyframe.
+
+    Mapping: ``local_ba`` (window ``local_window`` keyframes, ``ba_iterations``),
+    ``fuse_neighbours``.
+
+    Loops: ``loop_closure``, vocabulary of ``vocabulary_size`` words trained once
+    ``vocabulary_keyframes`` keyframes exist (unless a vocabulary is given),
+    ``loop_min_inliers``, ``loop_max_sigma_t`` (m) / ``loop_max_sigma_r`` (rad)
+    (largest standard deviation of the verified pose: weak geometry is refused),
+    ``loop_consistency``, ``loop_exclude_recent``,
+    ``global_ba_after_loop``; ``final_global_ba`` runs on :meth:`finish`.
+
+    Odometry (optional ``odom_pose`` per frame): predicts the motion instead of
+    the constant-velocity model, and after ``reinit_after_lost`` lost frames
+    without relocalisation restarts tracking at the odometry-predicted pose
+    (the new part of the map joins the old one when a loop or relocalisation
+    links them).
+
+    ``seed`` seeds every random choice (RANSAC, vocabulary); ``dense_stride`` is the
+    pixel stride of the points kept per keyframe for the dense cloud.
+    """
+
+    n_features: int = 1000
+    scale_factor: float = 1.2
+    n_levels: int = 8
+    fast_threshold: int = 20
+    grid_cell: int = 40
+    min_depth: float = 0.1
+    max_depth: float = 8.0
+    depth_scale: float | None = None
+    depth_noise: float = 0.0004
+    close_depth: float = 3.0
+    search_radius: float = 15.0
+    local_radius: float = 4.0
+    min_inliers: int = 30
+    reloc_min_inliers: int = 40
+    local_keyframes: int = 12
+    kf_max_frames: int = 20
+    kf_min_frames: int = 0
+    kf_ratio: float = 0.75
+    kf_translation: float = 0.25
+    kf_rotation_deg: float = 15.0
+    local_ba: bool = True
+    local_window: int = 8
+    ba_iterations: int = 4
+    fuse_neighbours: int = 8
+    loop_closure: bool = True
+    vocabulary_size: int = 500
+    vocabulary_keyframes: int = 12
+    loop_min_inliers: int = 50
+    loop_max_sigma_t: float = 0.01
+    loop_max_sigma_r: float = 0.003
+    loop_consistency: int = 1
+    loop_exclude_recent: int = 20
+    loop_min_gap: int = 10
+    global_ba_after_loop: bool = False
+    final_global_ba: bool = True
+    global_ba_iterations: int = 15
+    seed: int = 0
+    dense_stride: int = 8
+    reinit_after_lost: int = 5
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """The outcome of one frame.
+
+    Attributes:
+        stamp_ns: the frame's stamp.
+        state: tracking state after the frame.
+        t_wc: camera pose in the map frame (None when not tracked).
+        inliers: inlier map point matches.
+        keyframe: a keyframe was created.
+        loop: a loop was closed (past poses moved).
+        relocalized: tracking was recovered from loss on this frame.
+        reinitialized: tracking restarted from the odometry prior after a loss.
+        warnings: problems noticed with this frame's inputs.
+        timings: seconds per stage (features, matching, pose, mapping, loop).
+    """
+
+    stamp_ns: int
+    state: TrackingState
+    t_wc: NDArray[np.float64] | None
+    inliers: int = 0
+    keyframe: bool = False
+    loop: bool = False
+    relocalized: bool = False
+    reinitialized: bool = False
+    warnings: tuple[str, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)

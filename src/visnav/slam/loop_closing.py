@@ -1,0 +1,144 @@
+"""Loop closing: the bag-of-words database, loop detection, verification and correction.
+
+Each new keyframe gets a bag-of-words vector (the vocabulary is trained on the
+first ``vocabulary_keyframes`` keyframes unless one is given). Loop candidates
+from :class:`~visnav.slam.place_recognition.LoopDetector` are verified by
+localising the keyframe in the candidate's map region; a loop is accepted only
+when the pose found there is well determined (its standard deviations below
+``loop_max_sigma_t`` / ``loop_max_sigma_r``: matches on one distant wall can
+leave a rotation-translation ambiguity of a degree). The correction then:
+
+1. adds the relative pose (weighted by its covariance) to the loop constraints
+   and optimises the pose graph (gtsam), keyframe 0 fixed;
+2. moves every map point with the correction of its reference keyframe;
+3. merges the keyframe's matched points into the old ones and fuses the old
+   region's points into the keyframe's neighbourhood, so tracking continues on
+   the old map;
+4. optionally runs a global bundle adjustment.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from visnav.slam.camera import CameraIntrinsics
+from visnav.slam.config import SlamConfig
+from visnav.slam.features import DescArray
+from visnav.slam.geometry import inverse
+from visnav.slam.mapping import fuse_points
+from visnav.slam.optimizer import LoopConstraint, apply_point_corrections, optimize_pose_graph
+from visnav.slam.place_recognition import Localization, LoopDetector, localize_in_map
+from visnav.slam.slam_map import Keyframe, SlamMap
+from visnav.slam.vocabulary import BowDatabase, Vocabulary
+
+__all__ = ["LoopCloser"]
+
+
+class LoopCloser:
+    """Bag-of-words place memory and loop closure over one map.
+
+    Args:
+        slam_map: the map (corrected in place).
+        camera: intrinsics.
+        config: the SLAM parameters (loop and vocabulary settings).
+        vocabulary: a pre-trained vocabulary (default: trained on the fly).
+        global_ba: called after a correction when ``config.global_ba_after_loop``.
+    """
+
+    def __init__(
+        self,
+        slam_map: SlamMap,
+        camera: CameraIntrinsics,
+        config: SlamConfig,
+        *,
+        vocabulary: Vocabulary | None = None,
+        global_ba: Callable[[], None] | None = None,
+    ) -> None:
+        self.map = slam_map
+        self.camera = camera
+        self.config = config
+        self.vocabulary = vocabulary
+        self.database = BowDatabase(vocabulary) if vocabulary is not None else None
+        self.detector = LoopDetector(
+            exclude_recent=config.loop_exclude_recent, consistency=config.loop_consistency
+        )
+        self.loops: list[LoopConstraint] = []
+        self.last_loop_kf = -(10**9)
+        self._global_ba = global_ba
+
+    def place_candidates(self, descriptors: DescArray, n: int) -> list[int]:
+        """Keyframes most similar to an image by bag of words (empty before the vocabulary)."""
+        if self.vocabulary is None or self.database is None or not len(self.database):
+            return []
+        ids, scores = self.database.query(self.vocabulary.transform(descriptors))
+        order = np.lexsort((ids, -scores))[:n]
+        return [int(ids[i]) for i in order]
+
+    def add_keyframe(self, kf: Keyframe) -> bool:
+        """Describe a new keyframe, look for a loop and close it; return whether one closed."""
+        cfg = self.config
+        if self.vocabulary is None:
+            if not cfg.loop_closure or len(self.map.keyframes) < cfg.vocabulary_keyframes:
+                return False
+            docs = [k.frame.descriptors for k in self.map.keyframes]
+            self.vocabulary = Vocabulary.train(docs, k=cfg.vocabulary_size, seed=cfg.seed)
+            self.database = BowDatabase(self.vocabulary)
+            for k in self.map.keyframes[:-1]:
+                k.bow = self.vocabulary.transform(k.frame.descriptors)
+                self.database.add(k.id, k.bow)
+        assert self.database is not None  # created with the vocabulary
+        kf.bow = self.vocabulary.transform(kf.frame.descriptors)
+        closed = False
+        if cfg.loop_closure and kf.id - self.last_loop_kf >= cfg.loop_min_gap:
+            closed = self._detect_and_close(kf)
+        self.database.add(kf.id, kf.bow)
+        return closed
+
+    def _detect_and_close(self, kf: Keyframe) -> bool:
+        assert self.vocabulary is not None  # add_keyframe made it
+        assert self.database is not None
+        cfg = self.config
+        for c in self.detector.candidates(kf, self.map, self.database, self.vocabulary):
+            group = [c, *self.map.keyframes[c].best_covisibles(8)]
+            loc = localize_in_map(
+                kf.frame, self.camera, self.map, group, min_inliers=cfg.loop_min_inliers
+            )
+            if loc is None:
+                continue
+            sigma_t, sigma_r = loc.sigmas()
+            if sigma_t > cfg.loop_max_sigma_t or sigma_r > cfg.loop_max_sigma_r:
+                continue
+            self._close(kf, c, loc)
+            return True
+        return False
+
+    def _close(self, kf: Keyframe, loop_id: int, loc: Localization) -> None:
+        m = self.map
+        loop_kf = m.keyframes[loop_id]
+        t_ij = loop_kf.t_cw @ inverse(loc.t_cw)
+        self.loops.append(LoopConstraint(loop_id, kf.id, t_ij, loc.covariance))
+        kf.loop_edges.add(loop_id)
+        loop_kf.loop_edges.add(kf.id)
+        corrections = optimize_pose_graph(m, self.loops)
+        apply_point_corrections(m, corrections)
+        for kp, p in zip(loc.keypoints.tolist(), loc.points.tolist(), strict=True):
+            existing = int(kf.frame.map_points[kp])
+            if m.bad[p]:
+                continue
+            if existing >= 0 and not m.bad[existing]:
+                if existing != p and kf.id not in m.observations[p]:
+                    m.replace_point(existing, p)
+            elif kf.id not in m.observations[p]:
+                m.add_observation(p, kf, kp)
+        group_pts = m.local_points([loop_id, *loop_kf.best_covisibles(10)])
+        targets = [kf.id, *kf.best_covisibles(10)]
+        for t in targets:
+            fuse_points(m, self.camera, m.keyframes[t], group_pts, radius=4.0)
+        for t in targets:
+            m.update_connections(m.keyframes[t])
+        if self.config.global_ba_after_loop and self._global_ba is not None:
+            self._global_ba()
+        self.last_loop_kf = kf.id
+        self.detector.reset()

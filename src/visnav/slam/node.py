@@ -1,0 +1,315 @@
+"""The SLAM graph node: synchronised RGB-D in, map -> odom, pose, path and clouds out.
+
+Topics (relative, rtabmap's names):
+
+* in: ``rgb/image`` (rectified mono8 / rgb8 / bgr8), ``depth/image`` (32FC1 m or
+  16UC1 mm, registered), ``rgb/camera_info``, paired by ApproximateTime (or exact
+  stamps with ``approx_sync: false``); ``slam/dense_cloud_request``
+  (``std_msgs/Empty``) asks for a dense cloud;
+* out: ``/tf`` ``map -> odom`` (so ``odom -> base_link`` from odometry stays
+  continuous, as ROS localisation does), ``slam/pose`` (``PoseStamped`` of the
+  base frame in the map), ``slam/path`` (``nav_msgs/Path``, rebuilt after a loop
+  closure), ``slam/map_points`` (sparse map, every ``map_cloud_period`` s) and
+  ``slam/dense_cloud`` (voxelised ``dense_voxel`` m, on request or every
+  ``dense_cloud_period`` s when > 0).
+
+The map frame starts equal to ``odom``: the first camera pose in the map is
+``T_odom_base(t0) T_base_camera``, both looked up in TF. With ``odom_frame: ""``
+the node publishes ``map -> base_frame`` itself. Parameters: ``map_frame``,
+``odom_frame``, ``base_frame``, ``publish_tf``, ``transform_tolerance`` (s the
+map -> odom stamp is post-dated, as amcl), ``tf_publish_period``, ``queue_size``,
+``approx_sync``, ``depth_scale`` (16UC1 units per metre), ``n_features``,
+``seed``, ``loop_closure``, ``local_ba``, ``vocabulary`` (a saved ``.npz``).
+
+Inputs that cannot be used (a camera_info that changes or disagrees with the
+image, an implausible depth scale) are logged once per distinct problem and the
+frame dropped; a SLAM scale that disagrees with wheel odometry by 5x or more is
+reported as a likely depth unit error.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav import message_filters
+from visnav.errors import VisnavError
+from visnav.graph.node import Node
+from visnav.msgs.image import image_to_numpy
+from visnav.msgs.pointcloud import xyz_to_cloud
+from visnav.msgs.serde import get_message_class
+from visnav.msgs.time import ns_to_time, time_to_ns
+from visnav.msgs.types import (
+    CameraInfo,
+    Header,
+    Image,
+    Path,
+    PointCloud2,
+    PoseStamped,
+    TransformStamped,
+)
+from visnav.slam.camera import CameraIntrinsics
+from visnav.slam.config import SlamConfig
+from visnav.slam.errors import SlamInputError
+from visnav.slam.geometry import inverse
+from visnav.slam.system import SlamSystem
+from visnav.slam.vocabulary import Vocabulary
+from visnav.tf import Buffer, TransformException, matrix_to_pose, matrix_to_transform
+from visnav.tf.ros import TransformBroadcaster, TransformListener
+
+__all__ = ["SlamNode"]
+
+FloatArray = NDArray[np.float64]
+
+_COLOUR = {"rgb8": None, "bgr8": "swap", "rgba8": "drop", "bgra8": "swapdrop"}
+
+
+def _image_array(msg: Image) -> NDArray[Any]:
+    arr = image_to_numpy(msg)
+    enc = msg.encoding
+    if enc in ("mono8", "8UC1"):
+        return arr
+    if enc in _COLOUR:
+        rgb = arr[:, :, :3]
+        return np.ascontiguousarray(rgb[:, :, ::-1] if "swap" in (_COLOUR[enc] or "") else rgb)
+    text = (
+        f"image encoding {enc!r} unsupported: SLAM takes rectified mono8, rgb8, bgr8, rgba8 "
+        "or bgra8 (debayer and rectify with image_proc first)"
+    )
+    raise SlamInputError(text)
+
+
+class SlamNode(Node):
+    """RGB-D SLAM on a camera stream (see the module docstring for topics and parameters).
+
+    Args:
+        name: node name (default ``slam``).
+        **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
+    """
+
+    def __init__(self, name: str = "slam", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        p = self.declare_parameter
+        self.map_frame = str(p("map_frame", "map").value)
+        self.odom_frame = str(p("odom_frame", "odom").value)
+        self.base_frame = str(p("base_frame", "base_link").value)
+        self.publish_tf = bool(p("publish_tf", value=True).value)
+        self.transform_tolerance = float(p("transform_tolerance", 0.1).value)
+        tf_period = float(p("tf_publish_period", 0.05).value)
+        queue = int(p("queue_size", 10).value)
+        approx = bool(p("approx_sync", value=True).value)
+        depth_scale = float(p("depth_scale", 1000.0).value)
+        map_period = float(p("map_cloud_period", 1.0).value)
+        dense_period = float(p("dense_cloud_period", 0.0).value)
+        self.dense_voxel = float(p("dense_voxel", 0.05).value)
+        vocab_path = str(p("vocabulary", "").value)
+        self.config = SlamConfig(
+            n_features=int(p("n_features", 1000).value),
+            seed=int(p("seed", 0).value),
+            loop_closure=bool(p("loop_closure", value=True).value),
+            local_ba=bool(p("local_ba", value=True).value),
+            depth_scale=depth_scale,
+            final_global_ba=False,
+        )
+        self.vocabulary = Vocabulary.load(vocab_path) if vocab_path else None
+        self.system: SlamSystem | None = None
+        self.camera: CameraIntrinsics | None = None
+        self._info_key: tuple[float, ...] | None = None
+        self._reported: set[str] = set()
+        self.dropped = 0
+        self.t_map_odom: FloatArray | None = None
+        self._t_base_cam: FloatArray | None = None
+        self._odom_start: FloatArray | None = None
+        self._slam_start: FloatArray | None = None
+        self._scale_checked = False
+        self.tf_buffer = Buffer()
+        self._listener = TransformListener(self.tf_buffer, self)
+        self._broadcaster = TransformBroadcaster(self)
+        self._pose_pub = self.create_publisher(PoseStamped, "slam/pose", 10)
+        self._path_pub = self.create_publisher(Path, "slam/path", 1)
+        self._map_pub = self.create_publisher(PointCloud2, "slam/map_points", 1)
+        self._dense_pub = self.create_publisher(PointCloud2, "slam/dense_cloud", 1)
+        self._path: list[PoseStamped] = []
+        empty = get_message_class("std_msgs/msg/Empty")
+        self.create_subscription(empty, "slam/dense_cloud_request", self._on_dense_request, 1)
+        image = message_filters.Subscriber(self, Image, "rgb/image", queue)
+        depth = message_filters.Subscriber(self, Image, "depth/image", queue)
+        info = message_filters.Subscriber(self, CameraInfo, "rgb/camera_info", queue)
+        self._sync: message_filters.SimpleFilter = (
+            message_filters.ApproximateTime([image, depth, info], queue)
+            if approx
+            else message_filters.TimeSynchronizer([image, depth, info], queue)
+        )
+        self._sync.register_callback(self._on_frame)
+        if self.publish_tf and tf_period > 0:
+            self.create_timer(tf_period, self._publish_tf)
+        if map_period > 0:
+            self.create_timer(map_period, self._publish_map)
+        if dense_period > 0:
+            self.create_timer(dense_period, self._publish_dense)
+
+    # ---------------------------------------------------------------- helpers
+
+    def _report(self, text: str, *, error: bool = True) -> None:
+        key = re.sub(r"[-+]?\d[\d.e+-]*", "#", text)  # one report per kind of problem
+        if key in self._reported:
+            return
+        self._reported.add(key)
+        if error:
+            self.get_logger().error(text)
+        else:
+            self.get_logger().warning(text)
+
+    def _lookup(self, target: str, source: str, stamp_ns: int) -> FloatArray | None:
+        try:
+            return self.tf_buffer.lookup_transform_matrix(target, source, stamp_ns)
+        except TransformException:
+            try:
+                return self.tf_buffer.lookup_transform_matrix(target, source, 0)
+            except TransformException as exc:
+                self._report(
+                    f"waiting for TF {target} -> {source} ({exc}); SLAM starts when it exists",
+                    error=False,
+                )
+                return None
+
+    def _check_camera(self, info: CameraInfo, image: Image) -> CameraIntrinsics:
+        key = (float(info.width), float(info.height), *map(float, info.k), *map(float, info.p))
+        if self.camera is None:
+            cam, warnings = CameraIntrinsics.from_camera_info(
+                info, source=self.resolve_topic_name("rgb/camera_info")
+            )
+            for w in warnings:
+                self._report(w, error=False)
+            self.camera, self._info_key = cam, key
+        elif key != self._info_key:
+            text = (
+                f"{self.resolve_topic_name('rgb/camera_info')} changed (size, K or P) after SLAM "
+                "started; the map is built with the first calibration: restart SLAM for a new one"
+            )
+            raise SlamInputError(text)
+        if info.header.frame_id and image.header.frame_id != info.header.frame_id:
+            self._report(
+                f"image frame_id {image.header.frame_id!r} differs from camera_info frame_id "
+                f"{info.header.frame_id!r}; using the image's",
+                error=False,
+            )
+        return self.camera
+
+    # -------------------------------------------------------------- callbacks
+
+    def _on_frame(self, image: Image, depth: Image, info: CameraInfo) -> None:
+        try:
+            self._process(image, depth, info)
+        except VisnavError as exc:
+            self.dropped += 1
+            self._report(f"dropped a frame: {exc}")
+
+    def _process(self, image: Image, depth: Image, info: CameraInfo) -> None:
+        cam = self._check_camera(info, image)
+        stamp = time_to_ns(image.header.stamp)
+        camera_frame = str(image.header.frame_id)
+        if self._t_base_cam is None:
+            t_base_cam = self._lookup(self.base_frame, camera_frame, stamp)
+            if t_base_cam is None:
+                return
+            self._t_base_cam = t_base_cam
+        t_odom_base = np.eye(4)
+        if self.odom_frame:
+            found = self._lookup(self.odom_frame, self.base_frame, stamp)
+            if found is None:
+                return
+            t_odom_base = found
+        if self.system is None:
+            self.system = SlamSystem(
+                cam,
+                self.config,
+                vocabulary=self.vocabulary,
+                initial_pose=t_odom_base @ self._t_base_cam,
+            )
+        depth_arr = image_to_numpy(depth)
+        if depth.encoding not in ("16UC1", "32FC1", "mono16"):
+            text = f"depth encoding {depth.encoding!r}: expected 32FC1 (m) or 16UC1 (mm)"
+            raise SlamInputError(text)
+        odom_pose = t_odom_base @ self._t_base_cam if self.odom_frame else None
+        result = self.system.track(_image_array(image), depth_arr, stamp, odom_pose=odom_pose)
+        for w in result.warnings:
+            self._report(w.split(": ", 1)[-1] if w.startswith("frame ") else w, error=False)
+        if result.t_wc is None:
+            return
+        t_map_base = result.t_wc @ inverse(self._t_base_cam)
+        self.t_map_odom = t_map_base @ inverse(t_odom_base)
+        self._check_scale(t_map_base, t_odom_base)
+        header = Header(stamp=ns_to_time(stamp), frame_id=self.map_frame)
+        pose = PoseStamped(header=header, pose=matrix_to_pose(t_map_base))
+        self._pose_pub.publish(pose)
+        if result.loop:
+            self._rebuild_path()
+        else:
+            self._path.append(pose)
+        self._path_pub.publish(Path(header=header, poses=list(self._path)))
+        self._publish_tf()
+
+    def _check_scale(self, t_map_base: FloatArray, t_odom_base: FloatArray) -> None:
+        if self._scale_checked or not self.odom_frame:
+            return
+        if self._odom_start is None or self._slam_start is None:
+            self._odom_start, self._slam_start = t_odom_base, t_map_base
+            return
+        d_odom = float(np.linalg.norm(t_odom_base[:3, 3] - self._odom_start[:3, 3]))
+        if d_odom < 0.5:
+            return
+        d_slam = float(np.linalg.norm(t_map_base[:3, 3] - self._slam_start[:3, 3]))
+        self._scale_checked = True
+        ratio = d_slam / d_odom
+        if ratio > 5.0 or ratio < 0.2:
+            self._report(
+                f"SLAM moved {d_slam:.3f} m while odometry moved {d_odom:.3f} m (ratio "
+                f"{ratio:.3g}): the depth scale is probably wrong (16UC1 must be millimetres "
+                "with depth_scale 1000, 32FC1 metres)"
+            )
+
+    def _rebuild_path(self) -> None:
+        assert self.system is not None
+        traj = self.system.trajectory()
+        mats = traj.matrices()
+        t_cb = inverse(self._t_base_cam) if self._t_base_cam is not None else np.eye(4)
+        self._path = [
+            PoseStamped(
+                header=Header(stamp=ns_to_time(round(t * 1e9)), frame_id=self.map_frame),
+                pose=matrix_to_pose(m @ t_cb),
+            )
+            for t, m in zip(traj.stamps, mats, strict=True)
+        ]
+
+    def _publish_tf(self) -> None:
+        if not self.publish_tf or self.t_map_odom is None:
+            return
+        stamp = self.get_clock().now_ns() + round(self.transform_tolerance * 1e9)
+        child = self.odom_frame or self.base_frame
+        msg = TransformStamped(
+            header=Header(stamp=ns_to_time(stamp), frame_id=self.map_frame),
+            child_frame_id=child,
+            transform=matrix_to_transform(self.t_map_odom),
+        )
+        self._broadcaster.send_transform(msg)
+
+    def _publish_map(self) -> None:
+        if self.system is None:
+            return
+        header = Header(stamp=ns_to_time(self.get_clock().now_ns()), frame_id=self.map_frame)
+        self._map_pub.publish(xyz_to_cloud(self.system.map_cloud(), header=header))
+
+    def _publish_dense(self) -> None:
+        if self.system is None:
+            return
+        pts, rgb = self.system.dense_cloud(self.dense_voxel)
+        header = Header(stamp=ns_to_time(self.get_clock().now_ns()), frame_id=self.map_frame)
+        self._dense_pub.publish(xyz_to_cloud(pts, header=header, rgb=rgb))
+
+    def _on_dense_request(self, msg: Any) -> None:
+        del msg
+        self._publish_dense()

@@ -1,0 +1,651 @@
+"""The RGB-D SLAM system: tracking, keyframe mapping, loop closing, relocalisation.
+
+One :class:`SlamSystem` per camera. Feed it synchronised rectified images and
+depth with :meth:`SlamSystem.track`; it returns the camera pose in the map frame
+(``T_wc``) and keeps a keyframe map. Everything runs in the caller's thread in
+a fixed order, so the same inputs and seed give the same trajectory.
+
+Per frame: ORB features with depth; the pose predicted by a constant-velocity
+model is refined on map points found by projection (falling back to descriptor
+matching against the reference keyframe, then to relocalisation against all
+keyframes by bag-of-words); then the local map (keyframes sharing points with
+the frame and their neighbours) is searched for more matches and the pose refined
+again. A keyframe is inserted when tracking weakens or the camera moved enough:
+new points from depth, culling, fusion with neighbours, local bundle adjustment,
+then loop detection, verification and pose-graph correction.
+
+Frame poses are stored relative to their reference keyframe, so loop closures
+and bundle adjustment move the whole trajectory (:meth:`SlamSystem.trajectory`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav.slam.camera import CameraIntrinsics, check_depth_scale, depth_to_metres
+from visnav.slam.clouds import depth_samples, voxel_average
+from visnav.slam.config import SlamConfig, TrackingState, TrackResult
+from visnav.slam.errors import SlamInputError
+from visnav.slam.features import Frame, OrbExtractor
+from visnav.slam.geometry import (
+    PoseObservations,
+    inverse,
+    optimize_pose,
+    orthonormalize,
+    project,
+    rotation_angle,
+)
+from visnav.slam.loop_closing import LoopCloser
+from visnav.slam.mapping import create_points, cull_recent_points, fuse_points
+from visnav.slam.matching import search_by_projection
+from visnav.slam.optimizer import LoopConstraint, bundle_adjustment
+from visnav.slam.place_recognition import Localization, localize_in_map
+from visnav.slam.slam_map import Keyframe, SlamMap
+from visnav.slam.trajectory import Trajectory
+from visnav.slam.vocabulary import Vocabulary
+
+__all__ = ["STAGES", "SlamSystem"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+STAGES = ("features", "matching", "pose", "mapping", "loop")
+
+
+@dataclass
+class _FrameRecord:
+    stamp_ns: int
+    ref_kf: int
+    t_c_ref: FloatArray
+
+
+@dataclass
+class _Stopwatch:
+    times: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    _t: float = 0.0
+    _stage: str = ""
+
+    def start(self, stage: str) -> None:
+        now = time.perf_counter()
+        if self._stage:
+            self.times[self._stage] += now - self._t
+        self._stage, self._t = stage, now
+
+    def stop(self) -> dict[str, float]:
+        self.start("")
+        return dict(self.times)
+
+
+def _virtual_baseline(depth_noise: float, fx: float) -> float:
+    if not depth_noise > 0:
+        text = f"depth_noise {depth_noise} must be positive (depth sigma = depth_noise * z^2, m)"
+        raise SlamInputError(text)
+    return 1.0 / (depth_noise * fx)
+
+
+class SlamSystem:
+    """RGB-D SLAM on one rectified camera.
+
+    Args:
+        camera: intrinsics of the rectified images.
+        config: parameters (:class:`SlamConfig`).
+        vocabulary: a pre-trained vocabulary (default: trained on the first keyframes).
+        initial_pose: ``T_map_camera`` of the first frame (default identity).
+    """
+
+    def __init__(
+        self,
+        camera: CameraIntrinsics,
+        config: SlamConfig | None = None,
+        *,
+        vocabulary: Vocabulary | None = None,
+        initial_pose: FloatArray | None = None,
+    ) -> None:
+        self.config = config or SlamConfig()
+        cfg = self.config
+        self.camera = CameraIntrinsics(
+            camera.fx,
+            camera.fy,
+            camera.cx,
+            camera.cy,
+            camera.width,
+            camera.height,
+            _virtual_baseline(cfg.depth_noise, camera.fx),
+        )
+        self.extractor = OrbExtractor(
+            n_features=cfg.n_features,
+            scale_factor=cfg.scale_factor,
+            n_levels=cfg.n_levels,
+            fast_threshold=cfg.fast_threshold,
+            grid_cell=cfg.grid_cell,
+            min_depth=cfg.min_depth,
+            max_depth=cfg.max_depth,
+        )
+        self.map = SlamMap()
+        self.loop_closer = LoopCloser(
+            self.map,
+            self.camera,
+            cfg,
+            vocabulary=vocabulary,
+            global_ba=self.global_bundle_adjustment,
+        )
+        self.state: TrackingState = "uninitialized"
+        self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
+        self.n_frames = 0
+        self.n_lost = 0
+        self.n_relocalized = 0
+        self.n_reinitialized = 0
+        self.timings: list[dict[str, float]] = []
+        self._records: list[_FrameRecord] = []
+        self._last: Frame | None = None
+        self._last_rec: _FrameRecord | None = None
+        self._velocity: FloatArray | None = None
+        self._ref_kf = -1
+        self._local_kfs: list[int] = []
+        self._local_points: IntArray = np.zeros(0, dtype=np.int64)
+        self._last_kf_frame = 0
+        self._just_relocalized = False
+        self._lost_frames = 0
+        self._odom_last: FloatArray | None = None
+        self._odom_pred: FloatArray | None = None
+
+    # ------------------------------------------------------------------ input
+
+    def _prepare(
+        self, image: NDArray[Any], depth: NDArray[Any]
+    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None, NDArray[np.float32], list[str]]:
+        cam = self.camera
+        cam.check_image(image.shape, source="image")
+        if depth.shape[:2] != image.shape[:2]:
+            text = (
+                f"depth is {depth.shape[1]}x{depth.shape[0]} but the image is {image.shape[1]}x"
+                f"{image.shape[0]}: SLAM needs depth registered to the image (same size)"
+            )
+            raise SlamInputError(text)
+        if image.dtype != np.uint8:
+            text = f"image has dtype {image.dtype}: expected uint8 (mono8, rgb8 or bgr8)"
+            raise SlamInputError(text)
+        colour: NDArray[np.uint8] | None = None
+        if image.ndim == 3 and image.shape[2] in (3, 4):
+            colour = np.ascontiguousarray(image[:, :, :3])
+            gray = np.asarray(cv2.cvtColor(colour, cv2.COLOR_RGB2GRAY), dtype=np.uint8)
+        elif image.ndim == 2:
+            gray = np.ascontiguousarray(image)
+        else:
+            text = f"image has shape {image.shape}: expected (H, W) mono or (H, W, 3) colour"
+            raise SlamInputError(text)
+        depth_m = depth_to_metres(depth, depth_scale=self.config.depth_scale)
+        warnings = check_depth_scale(depth_m[::4, ::4], source="depth")
+        return gray, colour, depth_m, warnings
+
+    # --------------------------------------------------------------- tracking
+
+    def track(
+        self,
+        image: NDArray[Any],
+        depth: NDArray[Any],
+        stamp_ns: int,
+        *,
+        odom_pose: FloatArray | None = None,
+    ) -> TrackResult:
+        """Process one synchronised RGB-D frame.
+
+        Args:
+            image: (H, W) uint8 mono or (H, W, 3) uint8 RGB, rectified.
+            depth: (H, W) float32 metres or uint16 (``config.depth_scale`` units per
+                metre, default millimetres), registered to ``image``.
+            stamp_ns: capture time in nanoseconds.
+            odom_pose: optional ``T_odom_camera`` from wheel (or other) odometry at
+                ``stamp_ns``: predicts the motion and lets tracking restart after a
+                loss that relocalisation cannot recover.
+
+        Returns:
+            The frame's pose and what happened.
+
+        Raises:
+            SlamInputError: image or depth do not fit the camera or each other, or
+                the depth scale is implausible.
+        """
+        sw = _Stopwatch()
+        sw.start("features")
+        gray, colour, depth_m, warnings = self._prepare(image, depth)
+        cv2.setRNGSeed(int(self.config.seed) + self.n_frames)
+        frame = self.extractor.extract(gray, depth_m, self.camera, int(stamp_ns))
+        self.n_frames += 1
+        kf_added = loop = reloc = reinit = False
+        inliers = 0
+        self._odom_pred = self._predict_from_odometry(odom_pose)
+        if self.state == "uninitialized":
+            if self._initialize(frame, depth_m, colour):
+                self.state = "ok"
+                kf_added = True
+                inliers = int((frame.map_points >= 0).sum())
+            else:
+                n_depth = int(np.isfinite(frame.depth).sum())
+                warnings.append(
+                    f"frame {stamp_ns}: {n_depth} keypoints with depth; need 50 to start the "
+                    "map (point the camera at textured surfaces within the depth range)"
+                )
+        else:
+            ok = False
+            if self.state == "ok":
+                sw.start("matching")
+                ok = self._track_motion(frame, sw) or self._track_reference(frame)
+            if not ok:
+                sw.start("matching")
+                ok = self._relocalize(frame)
+                reloc = ok and self.state == "lost"
+                if ok:
+                    self.n_relocalized += int(reloc)
+            if ok:
+                sw.start("matching")
+                inliers = self._track_local_map(frame, sw)
+                need = (
+                    self.config.reloc_min_inliers
+                    if (reloc or self._just_relocalized)
+                    else self.config.min_inliers
+                )
+                ok = inliers >= need
+            if ok:
+                self.state = "ok"
+                self._just_relocalized = reloc
+                if self._need_keyframe(frame, inliers):
+                    sw.start("mapping")
+                    loop = self._insert_keyframe(frame, depth_m, colour, sw)
+                    kf_added = True
+            else:
+                if self.state != "lost":
+                    warnings.append(
+                        f"frame {stamp_ns}: tracking lost ({inliers} inliers); relocalising"
+                    )
+                self.state = "lost"
+                self.n_lost += 1
+                self._lost_frames += 1
+                self._velocity = None
+                self._last = None
+                if (
+                    self._odom_pred is not None
+                    and self._lost_frames >= self.config.reinit_after_lost
+                    and self._reinitialize(frame, depth_m, colour, self._odom_pred)
+                ):
+                    reinit = True
+                    warnings.append(
+                        f"frame {stamp_ns}: tracking restarted at the odometry pose after "
+                        f"{self._lost_frames - 1} lost frames"
+                    )
+                    self.n_reinitialized += 1
+        t_wc: FloatArray | None = None
+        if self.state == "ok" and frame.t_cw is not None:
+            self._record(frame)
+            t_wc = inverse(frame.t_cw)
+            self._lost_frames = 0
+            self._odom_last = (
+                None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64) @ frame.t_cw
+            )
+        timings = sw.stop()
+        self.timings.append(timings)
+        return TrackResult(
+            stamp_ns=int(stamp_ns),
+            state=self.state,
+            t_wc=t_wc,
+            inliers=inliers,
+            keyframe=kf_added,
+            loop=loop,
+            relocalized=reloc,
+            reinitialized=reinit,
+            warnings=tuple(warnings),
+            timings=timings,
+        )
+
+    def _initialize(
+        self, frame: Frame, depth_m: NDArray[np.float32], colour: NDArray[np.uint8] | None
+    ) -> bool:
+        if int(np.isfinite(frame.depth).sum()) < 50:
+            return False
+        frame.t_cw = inverse(self.initial_pose)
+        kf = self.map.add_keyframe(frame, frame.t_cw, parent=-1)
+        create_points(self.map, kf)
+        self._store_cloud(kf, depth_m, colour)
+        self._ref_kf = kf.id
+        self._local_kfs = [kf.id]
+        self._local_points = self.map.local_points([kf.id])
+        self._last_kf_frame = self.n_frames
+        self.loop_closer.add_keyframe(kf)
+        return True
+
+    def _predict_from_odometry(self, odom_pose: FloatArray | None) -> FloatArray | None:
+        """Predicted ``T_cw`` from the odometry motion since the last tracked frame."""
+        if odom_pose is None or self._odom_last is None:
+            return None
+        # _odom_last is T_odom_world at the last tracked frame: T_cw = T_odom_cam^-1 T_odom_world
+        return orthonormalize(inverse(np.asarray(odom_pose, dtype=np.float64)) @ self._odom_last)
+
+    def _reinitialize(
+        self,
+        frame: Frame,
+        depth_m: NDArray[np.float32],
+        colour: NDArray[np.uint8] | None,
+        t_cw: FloatArray,
+    ) -> bool:
+        """Start tracking again from a new keyframe at an odometry-predicted pose."""
+        if int(np.isfinite(frame.depth).sum()) < 50 or not self.map.keyframes:
+            return False
+        frame.t_cw = t_cw.copy()
+        frame.map_points[:] = -1
+        parent = self.map.keyframes[-1].id
+        kf = self.map.add_keyframe(frame, frame.t_cw, parent=parent)
+        create_points(self.map, kf)
+        self._store_cloud(kf, depth_m, colour)
+        self._ref_kf = kf.id
+        self._local_kfs = [kf.id]
+        self._local_points = self.map.local_points([kf.id])
+        self._last_kf_frame = self.n_frames
+        self.state = "ok"
+        self.loop_closer.add_keyframe(kf)
+        return True
+
+    def _observations(self, frame: Frame, kp: IntArray, pts: IntArray) -> PoseObservations:
+        return PoseObservations(
+            self.map.positions[pts], frame.uv[kp], frame.u_right[kp], frame.inv_sigma2[kp]
+        )
+
+    def _track_motion(self, frame: Frame, sw: _Stopwatch) -> bool:
+        if self._last is None or self._last.t_cw is None:
+            return False
+        if self._odom_pred is not None:
+            pred = self._odom_pred
+        else:
+            velocity = self._velocity if self._velocity is not None else np.eye(4)
+            pred = velocity @ self._last.t_cw
+        pts = self._local_points[~self.map.bad[self._local_points]]
+        r = self.config.search_radius
+        mi, ki = search_by_projection(
+            frame, self.camera, pred, self.map.positions[pts], self.map.descriptors[pts], radius=r
+        )
+        if len(mi) < 20:
+            mi, ki = search_by_projection(
+                frame,
+                self.camera,
+                pred,
+                self.map.positions[pts],
+                self.map.descriptors[pts],
+                radius=2 * r,
+            )
+        if len(mi) < 20:
+            return False
+        sw.start("pose")
+        t_cw, mask = optimize_pose(self.camera, pred, self._observations(frame, ki, pts[mi]))
+        if int(mask.sum()) < 10:
+            return False
+        frame.t_cw = t_cw
+        frame.map_points[ki[mask]] = pts[mi[mask]]
+        return True
+
+    def _apply(self, frame: Frame, loc: Localization) -> None:
+        frame.t_cw = loc.t_cw
+        frame.map_points[:] = -1
+        frame.map_points[loc.keypoints] = loc.points
+
+    def _track_reference(self, frame: Frame) -> bool:
+        if self._ref_kf < 0:
+            return False
+        ref = self.map.keyframes[self._ref_kf]
+        loc = localize_in_map(
+            frame, self.camera, self.map, [ref.id, *ref.best_covisibles(5)], min_inliers=15
+        )
+        if loc is None:
+            return False
+        self._apply(frame, loc)
+        return True
+
+    def _relocalize(self, frame: Frame) -> bool:
+        kfs = [kf.id for kf in self.map.keyframes if not kf.bad]
+        if not kfs:
+            return False
+        candidates = self.loop_closer.place_candidates(frame.descriptors, 5) or kfs[::-1][:5]
+        for k in candidates:
+            group = [k, *self.map.keyframes[k].best_covisibles(5)]
+            loc = localize_in_map(
+                frame, self.camera, self.map, group, min_inliers=self.config.reloc_min_inliers
+            )
+            if loc is not None:
+                self._apply(frame, loc)
+                self._velocity = None
+                return True
+        return False
+
+    def _update_local_map(self, frame: Frame) -> None:
+        votes: dict[int, int] = {}
+        obs = self.map.observations
+        for p in frame.map_points[frame.map_points >= 0].tolist():
+            for k in obs[p]:
+                votes[k] = votes.get(k, 0) + 1
+        if not votes:
+            return
+        ranked = sorted(votes.items(), key=lambda kv: (-kv[1], kv[0]))
+        cap = self.config.local_keyframes
+        local = [k for k, _ in ranked[:cap]]
+        chosen = set(local)
+        for k in list(local):
+            if len(local) >= cap + 8:
+                break
+            kf = self.map.keyframes[k]
+            for n in [*kf.best_covisibles(4), kf.parent]:
+                if n >= 0 and n not in chosen:
+                    chosen.add(n)
+                    local.append(n)
+        self._ref_kf = ranked[0][0]
+        self._local_kfs = local
+        self._local_points = self.map.local_points(local)
+
+    def _track_local_map(self, frame: Frame, sw: _Stopwatch) -> int:
+        assert frame.t_cw is not None
+        self._update_local_map(frame)
+        pts = self._local_points
+        uv, z = project(self.camera, frame.t_cw, self.map.positions[pts])
+        cam = self.camera
+        inside = (
+            (z > 0.05)
+            & (uv[:, 0] >= 0)
+            & (uv[:, 0] < cam.width)
+            & (uv[:, 1] >= 0)
+            & (uv[:, 1] < cam.height)
+        )
+        self.map.visible[pts[inside]] += 1
+        matched = frame.map_points >= 0
+        cand = pts[inside & ~np.isin(pts, frame.map_points[matched])]
+        mi, ki = search_by_projection(
+            frame,
+            cam,
+            frame.t_cw,
+            self.map.positions[cand],
+            self.map.descriptors[cand],
+            radius=self.config.local_radius,
+            available=~matched,
+        )
+        frame.map_points[ki] = cand[mi]
+        sw.start("pose")
+        kp = np.flatnonzero(frame.map_points >= 0)
+        mp = frame.map_points[kp]
+        t_cw, mask = optimize_pose(cam, frame.t_cw, self._observations(frame, kp, mp))
+        frame.t_cw = t_cw
+        frame.map_points[kp[~mask]] = -1
+        self.map.found[mp[mask]] += 1
+        return int(mask.sum())
+
+    # -------------------------------------------------------------- keyframes
+
+    def _need_keyframe(self, frame: Frame, inliers: int) -> bool:
+        cfg = self.config
+        since = self.n_frames - self._last_kf_frame
+        if since < cfg.kf_min_frames:
+            return False
+        last_kf = self.map.keyframes[-1]
+        assert frame.t_cw is not None
+        rel = frame.t_cw @ last_kf.t_wc
+        moved = (
+            float(np.linalg.norm(rel[:3, 3])) > cfg.kf_translation
+            or np.degrees(rotation_angle(rel)) > cfg.kf_rotation_deg
+        )
+        ref = self.map.keyframes[self._ref_kf]
+        _, ref_pts = self.map.keyframe_points(ref)
+        min_obs = 2 if len(self.map.keyframes) <= 2 else 3
+        n_ref = sum(1 for p in ref_pts.tolist() if len(self.map.observations[p]) >= min_obs)
+        close = np.isfinite(frame.depth) & (frame.depth < cfg.close_depth)
+        tracked_close = int((close & (frame.map_points >= 0)).sum())
+        untracked_close = int((close & (frame.map_points < 0)).sum())
+        need_close = tracked_close < 100 and untracked_close > 70
+        weak = inliers < cfg.kf_ratio * n_ref
+        return since >= cfg.kf_max_frames or moved or need_close or weak
+
+    def _store_cloud(
+        self, kf: Keyframe, depth_m: NDArray[np.float32], colour: NDArray[np.uint8] | None
+    ) -> None:
+        kf.cloud = depth_samples(
+            depth_m,
+            colour,
+            self.camera,
+            stride=self.config.dense_stride,
+            max_depth=self.config.max_depth,
+        )
+
+    def _insert_keyframe(
+        self,
+        frame: Frame,
+        depth_m: NDArray[np.float32],
+        colour: NDArray[np.uint8] | None,
+        sw: _Stopwatch,
+    ) -> bool:
+        assert frame.t_cw is not None
+        cfg = self.config
+        m = self.map
+        kf = m.add_keyframe(frame, frame.t_cw, parent=self._ref_kf)
+        kp, pts = np.flatnonzero(frame.map_points >= 0), frame.map_points[frame.map_points >= 0]
+        for p, k in zip(pts.tolist(), kp.tolist(), strict=True):
+            m.observations[p][kf.id] = k
+        create_points(m, kf)
+        self._store_cloud(kf, depth_m, colour)
+        m.update_connections(kf)
+        cull_recent_points(m, kf.id)
+        neighbours = kf.best_covisibles(cfg.fuse_neighbours)
+        _, cur_pts = m.keyframe_points(kf)
+        for n in neighbours:
+            fuse_points(m, self.camera, m.keyframes[n], cur_pts)
+        fuse_points(m, self.camera, kf, m.local_points(neighbours))
+        _, cur_pts = m.keyframe_points(kf)
+        m.update_point_descriptors(cur_pts)
+        m.update_point_normals(cur_pts)
+        m.update_connections(kf)
+        for n in neighbours:
+            m.update_connections(m.keyframes[n])
+        if cfg.local_ba and len(m.keyframes) >= 2:
+            window = [kf.id, *kf.best_covisibles(cfg.local_window - 1)]
+            bundle_adjustment(
+                m,
+                self.camera,
+                window,
+                inv_sigma2_levels=self.extractor.inv_level_sigma2,
+                iterations=cfg.ba_iterations,
+            )
+        self._last_kf_frame = self.n_frames
+        self._ref_kf = kf.id
+        self._local_kfs = [kf.id, *kf.best_covisibles(cfg.local_keyframes)]
+        self._local_points = m.local_points(self._local_kfs)
+        sw.start("loop")
+        closed = self.loop_closer.add_keyframe(kf)
+        if closed:  # the loop region joined the local map
+            self._local_kfs = [kf.id, *kf.best_covisibles(cfg.local_keyframes)]
+            self._local_points = m.local_points(self._local_kfs)
+        frame.t_cw = kf.t_cw.copy()  # bundle adjustment / loop correction moved the keyframe
+        return closed
+
+    @property
+    def loops(self) -> list[LoopConstraint]:
+        """Loop constraints closed so far."""
+        return self.loop_closer.loops
+
+    @property
+    def vocabulary(self) -> Vocabulary | None:
+        """The bag-of-words vocabulary (None until trained)."""
+        return self.loop_closer.vocabulary
+
+    def global_bundle_adjustment(self, iterations: int | None = None) -> None:
+        """Optimise every keyframe pose (but the first) and map point together."""
+        ids = [kf.id for kf in self.map.keyframes if not kf.bad]
+        if len(ids) < 2:
+            return
+        bundle_adjustment(
+            self.map,
+            self.camera,
+            ids,
+            inv_sigma2_levels=self.extractor.inv_level_sigma2,
+            fixed_ids=[ids[0]],
+            iterations=iterations or self.config.global_ba_iterations,
+            min_observations=2,
+        )
+
+    # ----------------------------------------------------------------- output
+
+    def _record(self, frame: Frame) -> None:
+        assert frame.t_cw is not None
+        ref = self.map.keyframes[self._ref_kf]
+        rec = _FrameRecord(frame.stamp_ns, ref.id, frame.t_cw @ ref.t_wc)
+        if self._last is not None and self._last.t_cw is not None and self._last_rec is not None:
+            last_t_cw = self._last_rec.t_c_ref @ self.map.keyframes[self._last_rec.ref_kf].t_cw
+            self._velocity = orthonormalize(frame.t_cw @ inverse(last_t_cw))
+        self._records.append(rec)
+        self._last = frame
+        self._last_rec = rec
+
+    def current_pose(self) -> FloatArray | None:
+        """``T_map_camera`` of the last tracked frame, with corrections applied (None before)."""
+        if self._last_rec is None:
+            return None
+        rec = self._last_rec
+        return inverse(rec.t_c_ref @ self.map.keyframes[rec.ref_kf].t_cw)
+
+    def trajectory(self) -> Trajectory:
+        """Camera poses of all tracked frames in the map frame (loop corrections applied)."""
+        if not self._records:
+            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+        stamps = np.array([r.stamp_ns for r in self._records], dtype=np.float64) * 1e-9
+        mats = np.stack(
+            [inverse(r.t_c_ref @ self.map.keyframes[r.ref_kf].t_cw) for r in self._records]
+        )
+        return Trajectory.from_matrices(stamps, mats)
+
+    def keyframe_trajectory(self) -> Trajectory:
+        """Keyframe camera poses in the map frame."""
+        kfs = [kf for kf in self.map.keyframes if not kf.bad]
+        stamps = np.array([kf.stamp_ns for kf in kfs], dtype=np.float64) * 1e-9
+        if not kfs:
+            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+        return Trajectory.from_matrices(stamps, np.stack([kf.t_wc for kf in kfs]))
+
+    def map_cloud(self, *, min_observations: int = 2) -> NDArray[np.float32]:
+        """Sparse map: (N, 3) float32 positions of points seen by enough keyframes."""
+        return self.map.point_cloud(min_observations=min_observations).astype(np.float32)
+
+    def dense_cloud(
+        self, voxel_size: float = 0.05
+    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+        """Dense coloured cloud from the keyframes' depth, voxel-averaged.
+
+        Args:
+            voxel_size: voxel side in metres (one averaged point per occupied voxel).
+
+        Returns:
+            ``(points (N, 3) float32, rgb (N, 3) uint8)`` in the map frame.
+        """
+        return voxel_average(self.map.keyframes, voxel_size)
+
+    def finish(self) -> None:
+        """End of a run: the final global bundle adjustment if configured."""
+        if self.config.final_global_ba:
+            self.global_bundle_adjustment()
