@@ -69,3 +69,14 @@ def test_cli_errors_in_one_line(tmp_path: Path) -> None:
     )
     assert out.returncode == 1
     assert out.stderr.strip().splitlines()[-1].startswith("error: duration is -1.0")
+
+
+@pytest.mark.slow
+def test_drone_flies_through_the_forest(tmp_path: Path) -> None:
+    with Context(transport="local") as ctx:
+        summary = run_scenario("drone", seed=1, out=tmp_path / "d", context=ctx, progress=None)
+    assert summary["goals_reached"] == 1
+    assert summary["collisions"] == 0
+    assert summary["mean_speed_mps"] >= 1.5
+    assert summary["min_clearance_m"] > 0.0
+    assert summary["planning_time_ms"]["median"] <= 5.0

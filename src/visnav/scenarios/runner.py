@@ -38,6 +38,7 @@ from visnav.graph.introspect import subscription_qos_for
 from visnav.graph.node import Node
 from visnav.msgs.serde import get_message_class
 from visnav.sim.simulator import RobotSpawn, Simulator
+from visnav.sim.world import load_world
 
 __all__ = [
     "SCENARIOS",
@@ -74,6 +75,7 @@ class ScenarioDef:
     robot: str
     duration_s: float
     build: Callable[[Context, Simulator, int], list[ScenarioTask]]
+    namespace: str = "/"
 
 
 def _build_car(ctx: Context, sim: Simulator, seed: int) -> list[ScenarioTask]:
@@ -90,7 +92,7 @@ def _build_drone(ctx: Context, sim: Simulator, seed: int) -> list[ScenarioTask]:
 
 SCENARIOS: dict[str, ScenarioDef] = {
     "car": ScenarioDef("car", "office", "car", 60.0, _build_car),
-    "drone": ScenarioDef("drone", "forest", "quadrotor", 40.0, _build_drone),
+    "drone": ScenarioDef("drone", "forest", "quadrotor", 60.0, _build_drone, namespace="/drone"),
 }
 
 
@@ -224,9 +226,9 @@ def run_scenario(
     own_ctx = context is None
     ctx = context if context is not None else Context()
     try:
-        sim = Simulator(
-            sdef.world, [RobotSpawn(source=sdef.robot)], context=ctx, seed=seed, realtime=realtime
-        )
+        world = load_world(sdef.world, seed=seed)
+        spawn = RobotSpawn(source=sdef.robot, namespace=sdef.namespace)
+        sim = Simulator(world, [spawn], context=ctx, seed=seed, realtime=realtime)
         try:
             return _run(
                 sdef, ctx, sim, seed, duration, out_dir, bag_path, record_all, view, progress
