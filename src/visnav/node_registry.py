@@ -31,15 +31,21 @@ BUILTIN_NODES: Mapping[str, str] = {
     "depthimage_to_laserscan": "visnav.perception.nodes:DepthImageToLaserScanNode",
     "slam": "visnav.slam.node:SlamNode",
     "static_transform_publisher": "visnav.launch.static_tf:StaticTransformPublisherNode",
+    "sim": "visnav.sim.sim_node:SimulatorNode",
+    "robot_state_publisher": "visnav.sim.robot_state_node:RobotStatePublisherNode",
+    "ego_planner_node": "visnav.planning.ego_planner.nodes:EgoPlannerNode",
+    "traj_server": "visnav.planning.ego_planner.nodes:TrajServerNode",
+    "grid_map": "visnav.mapping.grid_map_node:GridMapNode",
 }
 
 # Node names launch files (and the roslaunch import) may use whose class another issue
 # is still building: name -> who builds it. Move a name to BUILTIN_NODES once it exists.
 PENDING_NODES: Mapping[str, str] = {
-    "sim": "issue 3 (the simulator node: MuJoCo world, robots, sensors, /clock)",
-    "spawn_model": "issue 3 (the simulator: spawning a robot description into the sim)",
-    "robot_state_publisher": "issue 3 (the simulator's robot_state_publisher node)",
-    "viz": "issue 5 item 2 (the viewer, `visnav view`, which replaces rviz)",
+    "spawn_model": (
+        "issue 3 (spawning into a running simulator: give the robot to the `sim` node's "
+        "robots instead)"
+    ),
+    "viz": "issue 5 item 2 (a viewer node; run `visnav view` next to the launch meanwhile)",
 }
 
 

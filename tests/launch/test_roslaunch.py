@@ -103,7 +103,7 @@ def test_tutorial_args_rviz_and_not_built_nodes() -> None:
     assert 'xyz="0.2 0 0.5"' in nodes["/spawn_urdf"].params["robot_description"]
     assert nodes["/gazebo"].params["paused"] is True
     with pytest.raises(
-        NodeNotBuiltError, match=r"node 'sim' \(/gazebo\) is not built yet: issue 3"
+        NodeNotBuiltError, match=r"node 'spawn_model' \(/spawn_urdf\) is not built yet: issue 3"
     ):
         Launcher(desc).start()
 
@@ -384,7 +384,9 @@ def test_yaml_includes_roslaunch_and_cli_prints_it(
     assert nodes["/sim/spawn_urdf"].params["x"] == 2.0
     assert main(["launch", "--print", str(TUTORIAL)]) == 0
     out = capsys.readouterr().out
-    assert "/gazebo  [sim]  process=shared use_sim_time=true  (not built yet: issue 3" in out
+    assert "/gazebo  [sim]  process=shared use_sim_time=true" in out
+    assert "/spawn_urdf  [spawn_model]" in out
+    assert "(not built yet: issue 3" in out
     assert "remap depth_camera_info -> depth/camera_info" in out
 
 

@@ -625,3 +625,51 @@ def test_joint_state_publisher() -> None:
     assert ros2.joints == ("left_wheel_joint", "right_wheel_joint")
     assert ros1.topic == "/r1/joint_states"
     assert ros1.joints == ros2.joints
+
+
+def test_p3d_tf_is_off_where_the_diff_drive_parents_the_body() -> None:
+    drive = """<plugin name="dd" filename="libgazebo_ros_diff_drive.so">
+        <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
+        <publish_odom_tf>true</publish_odom_tf></plugin>"""
+    p3d = """<plugin name="truth" filename="libgazebo_ros_p3d.so">
+        <body_name>base_footprint</body_name>{extra}</plugin>"""
+    alone = extensions(f"<gazebo>{p3d.format(extra='')}</gazebo>")
+    assert alone.odometry[0].publish_tf  # the root link: world -> base_footprint
+    both = extensions(f"<gazebo>{p3d.format(extra='')}{drive}</gazebo>")
+    assert not both.odometry[0].publish_tf  # odom -> base_footprint already
+    forced = extensions(
+        f"<gazebo>{p3d.format(extra='<publish_tf>true</publish_tf>')}{drive}</gazebo>"
+    )
+    assert forced.odometry[0].publish_tf
+    assert any("second parent" in w for w in forced.warnings)
+
+
+def test_quadrotor_plugin_topics_and_parameters() -> None:
+    ext = extensions(
+        """<gazebo><plugin name="fc" filename="libvisnav_quadrotor.so">
+        <ros><namespace>/uav</namespace><remapping>command/pose:=goal</remapping></ros>
+        <max_thrust>30</max_thrust><max_moment>1 1 0.3</max_moment>
+        </plugin></gazebo>"""
+    )
+    (quad,) = ext.quadrotors
+    assert quad.body_name == "base_footprint"  # the root link by default
+    assert quad.trajectory_topic == "/uav/command/trajectory"
+    assert quad.pose_topic == "/uav/goal"
+    assert dict(quad.parameters) == {"max_thrust": "30", "max_moment": "1 1 0.3"}
+    assert not ext.warnings
+
+
+@pytest.mark.parametrize(
+    ("plugin", "needle"),
+    [
+        ("<max_thrust>lots</max_thrust>", "must be numbers"),
+        ("<thrust>3</thrust>", "unknown parameter <thrust>"),
+        ("<max_moment>1</max_moment>", "needs 3 number"),
+        ("<body_name>rotor</body_name>", "'rotor' is not a link"),
+    ],
+)
+def test_bad_quadrotor_plugin(plugin: str, needle: str) -> None:
+    text = bad(
+        f'<gazebo><plugin name="fc" filename="libvisnav_quadrotor.so">{plugin}</plugin></gazebo>'
+    )
+    assert needle in text

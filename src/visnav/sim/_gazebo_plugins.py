@@ -10,12 +10,19 @@ from visnav.sim.gazebo_specs import (
     JointStatePublisherSpec,
     LinkProperties,
     OdometrySpec,
+    QuadrotorSpec,
     ros1_join,
     tf_resolve,
 )
 from visnav.sim.urdf import Urdf
 
-__all__ = ["link_properties", "parse_diff_drive", "parse_joint_state_publisher", "parse_p3d"]
+__all__ = [
+    "link_properties",
+    "parse_diff_drive",
+    "parse_joint_state_publisher",
+    "parse_p3d",
+    "parse_quadrotor",
+]
 
 # Gazebo classic's material script colours (ambient/diffuse of gazebo.material).
 _GAZEBO_COLOURS: dict[str, tuple[float, float, float, float]] = {
@@ -333,6 +340,47 @@ def parse_joint_state_publisher(
         topic=topic,
         update_rate=rate,
         ros_version=1 if ros1 else 2,
+    )
+
+
+def parse_quadrotor(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> QuadrotorSpec:
+    """``libvisnav_quadrotor.so``: body, vehicle limits and the command topics."""
+    from visnav.sim.vehicles.quadrotor import QuadrotorError, QuadrotorParams  # noqa: PLC0415
+
+    name = plugin.get("name") or "quadrotor"
+    owner = f"plugin {name!r} (libvisnav_quadrotor.so): "
+    node = plugin_node(reader, plugin, owner=owner)
+    body = reader.text(plugin, "body_name") or urdf.root
+    if body not in urdf.links:
+        found = plugin.find("body_name")
+        raise reader.error(
+            found if found is not None else plugin,
+            f"{owner}<body_name> {body!r} is not a link",
+            f"use one of: {', '.join(urdf.links)}",
+        )
+    params: list[tuple[str, str]] = []
+    elements: dict[str, ET.Element] = {}
+    for child in plugin:
+        if child.tag in ("ros", "body_name"):
+            continue
+        params.append((child.tag, (child.text or "").strip()))
+        elements[child.tag] = child
+    try:
+        QuadrotorParams.from_plugin_params(dict(params))
+    except QuadrotorError as exc:
+        culprit = next((e for tag, e in elements.items() if f"<{tag}>" in str(exc)), plugin)
+        raise reader.error(
+            culprit,
+            f"{owner}{exc}",
+            "write max_thrust, max_tilt, motor_time_constant, disturbance_std as one number "
+            "and max_moment as three",
+        ) from None
+    return QuadrotorSpec(
+        plugin_name=name,
+        body_name=body,
+        parameters=tuple(params),
+        trajectory_topic=node.resolve("command/trajectory"),
+        pose_topic=node.resolve("command/pose"),
     )
 
 

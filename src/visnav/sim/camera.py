@@ -9,11 +9,16 @@ Geometry. MuJoCo cameras look along -z with y up; the MuJoCo camera sits at
 the sensor's link and ``<pose>`` with that orientation, so the published data
 follow the optical convention (x right, y down, z forward). The MuJoCo camera
 uses explicit intrinsics (sensor size, focal length and principal point in
-pixels), so the rendered image has exactly the published K, including Gazebo's
-principal point ``((width + 1) / 2, (height + 1) / 2)``. With lens distortion,
+pixels), so the rendered image has exactly the published K, including any
+principal point (visnav's default ``(width / 2, height / 2)``). With lens distortion,
 an undistorted image is rendered on a larger canvas covering every distorted
 pixel's ray and warped with ``cv2.remap``, so a 3-D point projected with K and
 D (``cv2.projectPoints``) lands where it is drawn.
+
+Colour noise (``<noise>`` on a camera) is gaussian in [0, 1] units, quantised to
+the 8-bit levels; for 8-bit encodings each frame reads its samples from a seeded,
+precomputed pool at a random offset (two saturating adds per frame, as cheap as a
+copy), the way Gazebo's noise shader offsets a per-pixel hash each frame.
 
 Depth is the z coordinate in the optical frame: ``32FC1`` metres with NaN
 outside the valid range, or ``16UC1`` millimetres with 0 there. Point clouds
@@ -39,7 +44,7 @@ from numpy.typing import NDArray
 
 from visnav.errors import VisnavError
 from visnav.msgs.image import numpy_to_image
-from visnav.msgs.pointcloud import dtype_to_fields, pack_rgb
+from visnav.msgs.pointcloud import dtype_to_fields
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import CameraInfo, Header, Image, PointCloud2, RegionOfInterest
 from visnav.sim.gazebo import CameraSpec, LensDistortion
@@ -255,6 +260,61 @@ class CameraFrame:
     depth: NDArray[np.float32] | None = None
 
 
+_NOISE_POOL_ENCODINGS = ("rgb8", "bgr8", "mono8")
+
+
+class _ImageNoise:
+    """Seeded additive gaussian noise for 8-bit images at the cost of two saturating adds.
+
+    Gazebo draws camera noise in a shader from a per-pixel hash of the pixel position
+    and a random offset chosen each frame. Here a pool of ``2 * size`` samples of
+    ``N(mean, stddev)`` (in [0, 1] units, quantised to 8-bit levels exactly as
+    ``rint((value + noise) * 255)`` does for integer pixel values) is drawn once from
+    the sensor's seeded generator; each frame reads ``size`` consecutive samples from
+    a random offset. Every pixel's noise has the configured distribution; frames are
+    not independent draws in the strict sense (two frames share samples shifted by
+    the difference of their offsets).
+    """
+
+    def __init__(self, mean: float, stddev: float, size: int, rng: np.random.Generator) -> None:
+        self.size = size
+        self.rng = rng
+        levels = np.rint(rng.normal(mean * 255.0, stddev * 255.0, 2 * size))
+        levels = np.clip(levels, -255.0, 255.0)
+        self._up = np.clip(levels, 0.0, 255.0).astype(np.uint8)
+        self._down = np.clip(-levels, 0.0, 255.0).astype(np.uint8)
+
+    def apply(self, image: NDArray[np.uint8]) -> None:
+        """Add noise to a contiguous uint8 image in place (saturating at 0 and 255)."""
+        offset = int(self.rng.integers(0, self.size + 1))
+        up = self._up[offset : offset + self.size].reshape(image.shape)
+        down = self._down[offset : offset + self.size].reshape(image.shape)
+        # Each sample is either >= 0 (in `up`) or <= 0 (in `down`), so the two
+        # saturating operations equal clip(image + noise, 0, 255) exactly.
+        cv2.add(image, up, dst=image)
+        cv2.subtract(image, down, dst=image)
+
+
+def _wrap_image(array: NDArray[Any], encoding: str, header: Header) -> Image:
+    """An ``Image`` whose ``data`` is a view of ``array`` (a fresh, native-order array).
+
+    :func:`visnav.msgs.image.numpy_to_image` copies; the sensor's arrays are new
+    each frame, so wrapping them saves a copy per image.
+    """
+    arr = np.ascontiguousarray(array)
+    if arr.dtype.byteorder == ">":  # pragma: no cover - the sensor makes native arrays
+        return numpy_to_image(arr, encoding, header=header)
+    return Image(
+        header=header,
+        height=int(arr.shape[0]),
+        width=int(arr.shape[1]),
+        encoding=encoding,
+        is_bigendian=0,
+        step=int(arr.strides[0]),
+        data=arr.reshape(-1).view(np.uint8),
+    )
+
+
 # --------------------------------------------------------------------------- sensor
 
 
@@ -333,6 +393,12 @@ class CameraSensor:
             )
             raise VisnavError(msg)
         self.rng = np.random.default_rng(seed)
+        self._noise: _ImageNoise | None = None
+        if spec.noise.active and spec.encoding in _NOISE_POOL_ENCODINGS and self.render_color:
+            channels = 1 if spec.encoding == "mono8" else 3
+            self._noise = _ImageNoise(
+                spec.noise.mean, spec.noise.stddev, spec.width * spec.height * channels, self.rng
+            )
         self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
         self._option = mujoco.MjvOption()
         self._camera = mujoco.MjvCamera()
@@ -422,12 +488,19 @@ class CameraSensor:
         )
 
     def _color(self, rgb: NDArray[np.uint8]) -> NDArray[Any]:
+        """The published colour array: a fresh array (it becomes the message's data)."""
         spec = self.spec
-        image = np.ascontiguousarray(self._warp(rgb, nearest=False))
+        if self.layout.map_x is not None:
+            image = self._warp(rgb, nearest=False)
+        else:
+            image = np.array(rgb, order="C", copy=True)
         if spec.encoding.startswith("mono"):
             image = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
         elif spec.encoding == "bgr8":
-            image = np.ascontiguousarray(image[..., ::-1])
+            image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+        if self._noise is not None:
+            self._noise.apply(image)
+            return image
         deep = spec.encoding in ("mono16", "rgb16")
         noise = spec.noise
         if noise.active:
@@ -455,30 +528,36 @@ class CameraSensor:
         out[invalid] = np.nan
         return out
 
+    def _bgra(self, color: NDArray[Any]) -> NDArray[np.uint8]:
+        """The published colour image as a fresh BGRA uint8 array (alpha to be set)."""
+        encoding = self.spec.encoding
+        eight_bit = (color >> 8).astype(np.uint8) if encoding in ("mono16", "rgb16") else color
+        code = {
+            "mono8": cv2.COLOR_GRAY2BGRA,
+            "mono16": cv2.COLOR_GRAY2BGRA,
+            "bgr8": cv2.COLOR_BGR2BGRA,
+        }.get(encoding, cv2.COLOR_RGB2BGRA)
+        out = cv2.cvtColor(np.ascontiguousarray(eight_bit), code)
+        return np.asarray(out, dtype=np.uint8)
+
     def _cloud(
         self, metres: NDArray[np.float32], color: NDArray[Any] | None, header: Header
     ) -> PointCloud2:
         """Organized cloud in depth_image_proc / PCL layout, filled in one allocation."""
-        spec = self.spec
-        colours: NDArray[np.uint8] | None = None
-        if color is not None:
-            if spec.encoding == "mono8":
-                colours = np.repeat(color[..., None], 3, axis=-1)
-            elif spec.encoding == "mono16":
-                colours = np.repeat((color >> 8).astype(np.uint8)[..., None], 3, axis=-1)
-            elif spec.encoding == "bgr8":
-                colours = color[..., ::-1]
-            elif spec.encoding == "rgb16":
-                colours = (color >> 8).astype(np.uint8)
-            else:
-                colours = color
-        dtype = _XYZ_DTYPE if colours is None else _XYZRGB_DTYPE
-        cloud: NDArray[Any] = np.zeros(metres.shape, dtype=dtype)
-        np.multiply(self._rays[0], metres, out=cloud["x"])
-        np.multiply(self._rays[1], metres, out=cloud["y"])
-        cloud["z"] = metres
-        if colours is not None:
-            cloud["rgb"] = pack_rgb(colours)
+        bgra = None if color is None else self._bgra(color)
+        dtype = _XYZ_DTYPE if bgra is None else _XYZRGB_DTYPE
+        floats = dtype.itemsize // 4
+        # One zeroed float32 block, a row per point (padding stays 0, so the bytes are
+        # deterministic); columns x, y, z and, with colour, rgb at byte 16.
+        block = np.zeros((metres.size, floats), dtype=np.float32)
+        flat = metres.reshape(-1)
+        np.multiply(self._rays[0].reshape(-1), flat, out=block[:, 0])
+        np.multiply(self._rays[1].reshape(-1), flat, out=block[:, 1])
+        block[:, 2] = flat
+        if bgra is not None:
+            bgra[..., 3] = 0  # ROS rgb: 0x00RRGGBB in a little-endian uint32
+            block[:, 4] = bgra.reshape(-1, 4).view(np.float32).reshape(-1)
+        cloud = block.view(np.uint8).reshape(-1)
         height, width = metres.shape
         return PointCloud2(
             header=header,
@@ -488,7 +567,7 @@ class CameraSensor:
             is_bigendian=False,
             point_step=dtype.itemsize,
             row_step=dtype.itemsize * width,
-            data=cloud.reshape(-1).view(np.uint8),
+            data=cloud,
             is_dense=bool(np.isfinite(metres).all()),
         )
 
@@ -510,16 +589,16 @@ class CameraSensor:
         color = image = None
         if rgb is not None:
             color = self._color(rgb)
-            image = numpy_to_image(color, spec.encoding, header=header)
+            image = _wrap_image(color, spec.encoding, header)
         if depth is None:
             return CameraFrame(stamp_ns, info, image=image, color=color)
         metres = self._depth(depth)
         if spec.depth_encoding == "16UC1":
             mm = np.nan_to_num(np.rint(metres * 1000.0), nan=0.0)
             mm = np.where(mm > 65535.0, 0.0, mm)
-            depth_image = numpy_to_image(mm.astype(np.uint16), "16UC1", header=header)
+            depth_image = _wrap_image(mm.astype(np.uint16), "16UC1", header)
         else:
-            depth_image = numpy_to_image(metres, "32FC1", header=header)
+            depth_image = _wrap_image(metres, "32FC1", header)
         points = None
         if spec.pointcloud:
             points = self._cloud(metres, color, header)

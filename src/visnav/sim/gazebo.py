@@ -11,9 +11,10 @@ resolves the exact topic names and frame ids the plugins publish:
   ``cameraInfoTopicName``, ``frameName``, ``distortionK1``..) follow
   ``gazebo_ros_camera_utils``: ``<robotNamespace>/<cameraName>/<imageTopicName>``
   and the frame prefixed like ``tf::resolve(tf_prefix, frameName)``.
-  K is ``fx = fy = width / (2 tan(hfov / 2))`` and Gazebo's principal point
-  ``cx, cy = (width + 1) / 2, (height + 1) / 2`` (``<cx>``/``<cy>``, ROS 1
-  ``<Cx>``/``<Cy>``, override it); visnav renders exactly this K.
+  K is ``fx = fy = width / (2 tan(hfov / 2))`` and the principal point
+  ``cx, cy = width / 2, height / 2`` (``<cx>``/``<cy>``, ROS 1 ``<Cx>``/``<Cy>``,
+  override it; Gazebo publishes ``(width + 1) / 2``, see
+  :func:`~visnav.sim.gazebo_specs.default_principal_point`); visnav renders exactly this K.
 * ``<sensor type="depth">`` + ``libgazebo_ros_camera.so`` (ROS 2) adds
   ``<camera_name>/depth/image_raw``, ``/depth/camera_info`` and ``/points``;
   ``libgazebo_ros_depth_camera.so`` / ``libgazebo_ros_openni_kinect.so``
@@ -28,6 +29,10 @@ resolves the exact topic names and frame ids the plugins publish:
 * ``<sensor type="imu">`` + ``libgazebo_ros_imu_sensor.so``: ``~/out``
   (``<ns>/<plugin name>/out``) in ROS 2, ``<robotNamespace>/<topicName>`` in ROS 1.
 * ``libgazebo_ros_joint_state_publisher.so``: ``joint_states``.
+* ``libvisnav_quadrotor.so`` (visnav's own, no Gazebo counterpart): the vehicle
+  limits of :class:`~visnav.sim.vehicles.quadrotor.QuadrotorParams` as child
+  elements, ``<body_name>`` (default the root link), and the command topics
+  ``command/trajectory`` and ``command/pose`` in its ``<ros>`` namespace.
 
 Every element or plugin visnav does not model produces a warning naming it
 (returned in :attr:`GazeboExtensions.warnings` and logged). Bad values (a
@@ -40,20 +45,23 @@ Where visnav differs from Gazebo: the default camera frame is the sensor's own
 link (Gazebo reports the link the sensor ends up on after fixed-joint lumping,
 often ``base_link``); depth outside the valid range is NaN for both ROS 1 and
 ROS 2 plugins (ROS 2's gazebo_ros_camera writes -inf/+inf); depth noise is
-applied (Gazebo ignores ``<noise>`` on depth sensors); p3d can also broadcast
-``frame_name -> body`` on TF when that does not give a frame a second parent.
+applied (Gazebo ignores ``<noise>`` on depth sensors); p3d also broadcasts
+``frame_name -> body`` on TF (by default when the body is the root link and no
+diff drive publishes ``odom -> body``; ``<publish_tf>`` decides explicitly).
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 from visnav.sim._gazebo_plugins import (
     link_properties,
     parse_diff_drive,
     parse_joint_state_publisher,
     parse_p3d,
+    parse_quadrotor,
 )
 from visnav.sim._gazebo_sensors import parse_camera, parse_imu
 from visnav.sim._sdf_reader import SdfReader
@@ -67,6 +75,7 @@ from visnav.sim.gazebo_specs import (
     LensDistortion,
     LinkProperties,
     OdometrySpec,
+    QuadrotorSpec,
     RosNodeNames,
     default_principal_point,
     ros1_join,
@@ -84,6 +93,7 @@ __all__ = [
     "LensDistortion",
     "LinkProperties",
     "OdometrySpec",
+    "QuadrotorSpec",
     "RosNodeNames",
     "default_principal_point",
     "parse_gazebo_extensions",
@@ -114,11 +124,14 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
     odometry: list[OdometrySpec] = []
     drives: list[DiffDriveSpec] = []
     jsps: list[JointStatePublisherSpec] = []
+    quads: list[QuadrotorSpec] = []
+    p3d_elements: list[ET.Element] = []
     props: dict[str, LinkProperties] = {}
     handlers: dict[str, Callable[[SdfReader, ET.Element, Urdf], object]] = {
         "libgazebo_ros_p3d.so": parse_p3d,
         "libgazebo_ros_diff_drive.so": parse_diff_drive,
         "libgazebo_ros_joint_state_publisher.so": parse_joint_state_publisher,
+        "libvisnav_quadrotor.so": parse_quadrotor,
     }
     for block in urdf.gazebo:
         element = block.element
@@ -139,10 +152,13 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
                     result = handler(reader, child, urdf)
                     if isinstance(result, OdometrySpec):
                         odometry.append(result)
+                        p3d_elements.append(child)
                     elif isinstance(result, DiffDriveSpec):
                         drives.append(result)
                     elif isinstance(result, JointStatePublisherSpec):
                         jsps.append(result)
+                    elif isinstance(result, QuadrotorSpec):
+                        quads.append(result)
                 elif child.tag == "sensor":
                     raise reader.error(
                         child,
@@ -204,11 +220,51 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
                     "supported (camera, depth and imu are) and is ignored",
                 )
     _check_unique(reader, urdf, cameras, imus)
+    odometry = _p3d_tf_without_second_parent(reader, odometry, p3d_elements, drives)
+    if len(quads) > 1:
+        raise RobotDescriptionError(
+            f"{urdf.source}: {len(quads)} libvisnav_quadrotor.so plugins: one robot flies with "
+            'one controller. Fix: keep one <plugin filename="libvisnav_quadrotor.so">'
+        )
     return GazeboExtensions(
         cameras=tuple(cameras), imus=tuple(imus), odometry=tuple(odometry),
-        diff_drives=tuple(drives), joint_state_publishers=tuple(jsps), link_properties=props,
-        warnings=tuple(reader.warnings),
+        diff_drives=tuple(drives), joint_state_publishers=tuple(jsps), quadrotors=tuple(quads),
+        link_properties=props, warnings=tuple(reader.warnings),
     )  # fmt: skip
+
+
+def _p3d_tf_without_second_parent(
+    reader: SdfReader,
+    odometry: list[OdometrySpec],
+    elements: list[ET.Element],
+    drives: list[DiffDriveSpec],
+) -> list[OdometrySpec]:
+    """Turn off p3d's default TF where a diff drive already parents the same frame.
+
+    p3d broadcasts ``frame_name -> body`` by default when the body is the root link;
+    a diff drive publishing ``odom -> base_footprint`` makes that a second parent of
+    the same frame, which TF rejects. An explicit ``<publish_tf>true`` is kept, with
+    a warning.
+    """
+    out: list[OdometrySpec] = []
+    for parsed, element in zip(odometry, elements, strict=True):
+        spec = parsed
+        owner = next(
+            (d for d in drives if d.publish_odom_tf and d.robot_base_frame == spec.child_frame_id),
+            None,
+        )
+        if spec.publish_tf and owner is not None:
+            if element.find("publish_tf") is None:
+                spec = replace(spec, publish_tf=False)
+            else:
+                reader.warn(
+                    element,
+                    f"plugin {spec.plugin_name!r} (libgazebo_ros_p3d.so): publish_tf gives "
+                    f"{spec.child_frame_id!r} a second parent ({spec.frame_id!r} besides "
+                    f"{owner.odometry_frame!r} from diff drive {owner.plugin_name!r})",
+                )
+        out.append(spec)
+    return out
 
 
 def _check_unique(

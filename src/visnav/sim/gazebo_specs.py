@@ -27,6 +27,7 @@ __all__ = [
     "LensDistortion",
     "LinkProperties",
     "OdometrySpec",
+    "QuadrotorSpec",
     "RosNodeNames",
     "default_principal_point",
     "normalize_namespace",
@@ -282,6 +283,26 @@ class JointStatePublisherSpec:
     ros_version: Literal[1, 2] = 2
 
 
+@dataclass(frozen=True, kw_only=True)
+class QuadrotorSpec:
+    """``libvisnav_quadrotor.so``: visnav's quadrotor (no Gazebo counterpart).
+
+    The root link (or ``<body_name>``) is flown by
+    :class:`visnav.sim.vehicles.quadrotor.QuadrotorController`; ``parameters`` are
+    the plugin's other elements as text, for
+    :meth:`~visnav.sim.vehicles.quadrotor.QuadrotorParams.from_plugin_params`.
+    References arrive on ``trajectory_topic`` (``trajectory_msgs/MultiDOFJointTrajectory``,
+    RotorS' ``command/trajectory``) and ``pose_topic`` (``geometry_msgs/PoseStamped``,
+    RotorS' ``command/pose``), both resolved in the plugin's ``<ros>`` namespace.
+    """
+
+    plugin_name: str
+    body_name: str
+    parameters: tuple[tuple[str, str], ...] = ()
+    trajectory_topic: str = "/command/trajectory"
+    pose_topic: str = "/command/pose"
+
+
 @dataclass(frozen=True)
 class LinkProperties:
     """``<gazebo reference="link">`` surface properties visnav applies."""
@@ -300,5 +321,6 @@ class GazeboExtensions:
     odometry: tuple[OdometrySpec, ...] = ()
     diff_drives: tuple[DiffDriveSpec, ...] = ()
     joint_state_publishers: tuple[JointStatePublisherSpec, ...] = ()
+    quadrotors: tuple[QuadrotorSpec, ...] = ()
     link_properties: Mapping[str, LinkProperties] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()

@@ -1,0 +1,684 @@
+"""The simulator's Gazebo-style sensors and plugins on the graph: one node each.
+
+Each class wires one parsed ``<gazebo>`` block (:mod:`visnav.sim.gazebo`) to
+topics the way its ``gazebo_ros`` plugin does; :class:`~visnav.sim.simulator.Simulator`
+creates them. Per physics step ``k`` (sim time ``t = k * dt``) the simulator calls,
+in this order:
+
+1. :meth:`SimPlugin.sense` after ``mj_step1``: kinematics and position / velocity
+   sensors describe time ``t`` (cameras, p3d, joint states);
+2. :meth:`SimPlugin.control`: controllers read the state at ``t`` and write forces
+   (diff drive, quadrotor); the diff drive's odometry is stamped ``t``;
+3. the simulator spins the context, so in-process nodes react at sim time ``t``;
+4. :meth:`SimPlugin.after_step` after ``mj_step2``: acceleration-stage sensors
+   (the IMU's accelerometer) describe ``t``.
+
+Every message is stamped with sim time; each sensor fires at its own
+``update_rate`` on a drift-free :class:`~visnav.sim.sensor_timing.SensorClock`.
+
+QoS: every publisher is reliable, keep-last (depth 5 for sensor data, 10
+otherwise), which feeds reliable and best-effort subscriptions alike. (gazebo_ros
+uses best-effort ``SensorDataQoS`` for the IMU, which default-QoS subscribers
+never receive.)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+from rosbags.typesys.stores.ros2_humble import (
+    trajectory_msgs__msg__MultiDOFJointTrajectory as MultiDOFJointTrajectory,
+)
+
+from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.msgs.time import duration_to_ns, ns_to_time
+from visnav.msgs.types import (
+    CameraInfo,
+    Header,
+    Image,
+    Imu,
+    JointState,
+    Odometry,
+    Point,
+    PointCloud2,
+    Pose,
+    PoseStamped,
+    PoseWithCovariance,
+    Quaternion,
+    String,
+    Transform,
+    TransformStamped,
+    Twist,
+    TwistWithCovariance,
+    Vector3,
+)
+from visnav.sim._rigid import matrix_to_quat_xyzw, quat_xyzw_to_matrix, rpy_to_matrix
+from visnav.sim.robot_state import RobotStateError
+from visnav.sim.sensor_timing import SensorClock
+from visnav.sim.vehicles._state import BodyReader
+from visnav.sim.vehicles.quadrotor import PositionCommand
+from visnav.tf.ros import StaticTransformBroadcaster, TransformBroadcaster
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import NDArray
+
+    from visnav.graph.node import Node
+    from visnav.sim.camera import CameraSensor
+    from visnav.sim.gazebo_specs import (
+        CameraSpec,
+        DiffDriveSpec,
+        GaussianNoise,
+        ImuSpec,
+        JointStatePublisherSpec,
+        OdometrySpec,
+        QuadrotorSpec,
+    )
+    from visnav.sim.robot_state import RobotStateModel
+    from visnav.sim.vehicles.diff_drive import DiffDriveController
+    from visnav.sim.vehicles.quadrotor import QuadrotorController
+
+__all__ = [
+    "DEFAULT_QOS",
+    "LATCHED_QOS",
+    "SENSOR_QOS",
+    "CameraPlugin",
+    "DiffDrivePlugin",
+    "ImuPlugin",
+    "JointStatePlugin",
+    "OdometryPlugin",
+    "QuadrotorPlugin",
+    "RobotStatePublisher",
+    "MultiDOFJointTrajectory",
+    "SimPlugin",
+    "trajectory_point_command",
+]
+
+SENSOR_QOS = QoSProfile(depth=5)
+DEFAULT_QOS = QoSProfile(depth=10)
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _header(stamp_ns: int, frame_id: str) -> Header:
+    return Header(stamp=ns_to_time(stamp_ns), frame_id=frame_id)
+
+
+def _quaternion(q: Sequence[float]) -> Quaternion:
+    return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+
+
+def _vector(v: Sequence[float] | NDArray[np.float64]) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def _yaw_of(q: Quaternion) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+class SimPlugin:
+    """One sensor or plugin of a robot, with its graph node; hooks default to no-ops.
+
+    Attributes:
+        node: the plugin's node (destroyed by :meth:`close`).
+        name: a label for statistics and messages.
+    """
+
+    def __init__(self, node: Node, name: str) -> None:
+        self.node = node
+        self.name = name
+
+    def sense(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Measure the state at ``now_ns`` (after ``mj_step1``)."""
+
+    def control(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Apply controls for the step starting at ``now_ns``."""
+
+    def after_step(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Read acceleration-stage sensors of ``now_ns`` (after ``mj_step2``)."""
+
+    def close(self) -> None:
+        """Destroy the node."""
+        self.node.destroy_node()
+
+
+class _Noise:
+    """Gazebo's ``GaussianNoiseModel``: a bias drawn once (random sign), plus N(mean, std)."""
+
+    def __init__(self, noise: GaussianNoise, rng: np.random.Generator) -> None:
+        self.mean = noise.mean
+        self.stddev = noise.stddev
+        self.active = noise.active
+        bias = float(rng.normal(noise.bias_mean, noise.bias_stddev)) if noise.active else 0.0
+        self.bias = -bias if noise.active and rng.uniform() < 0.5 else bias
+
+    def apply(self, value: float, rng: np.random.Generator) -> float:
+        if not self.active:
+            return value
+        return value + float(rng.normal(self.mean, self.stddev)) + self.bias
+
+
+# --------------------------------------------------------------------------- cameras
+
+
+class CameraPlugin(SimPlugin):
+    """``libgazebo_ros_camera.so`` (and the depth plugins): renders when due and publishes.
+
+    An image and its camera_info share one header (stamp and frame_id). Rendering
+    happens only at the sensor's update rate.
+
+    Args:
+        node: the plugin's node.
+        spec: the camera with its final topics and frame.
+        sensor: the renderer of ``spec``.
+        start_ns: sim time of the first possible frame.
+    """
+
+    def __init__(
+        self, node: Node, spec: CameraSpec, sensor: CameraSensor, *, start_ns: int = 0
+    ) -> None:
+        super().__init__(node, spec.name)
+        self.spec = spec
+        self.sensor = sensor
+        self.clock = SensorClock(spec.update_rate, start_ns=start_ns)
+        self.render_ns = 0
+        self.frames = 0
+
+        def pub(msg_type: type[Any], topic: str | None) -> Any:
+            return node.create_publisher(msg_type, topic, SENSOR_QOS) if topic else None
+
+        self._image = pub(Image, spec.image_topic) if sensor.render_color else None
+        self._info = pub(CameraInfo, spec.camera_info_topic) if sensor.render_color else None
+        depth = spec.kind == "depth"
+        self._depth = pub(Image, spec.depth_topic) if depth else None
+        self._depth_info = pub(CameraInfo, spec.depth_info_topic) if depth else None
+        self._points = pub(PointCloud2, spec.points_topic) if depth and spec.pointcloud else None
+
+    def sense(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Measure at ``now_ns`` when due and publish."""
+        if not self.clock.due(now_ns):
+            return
+        start = time.perf_counter_ns()
+        frame = self.sensor.render(data, stamp_ns=now_ns)
+        self.render_ns += time.perf_counter_ns() - start
+        self.frames += 1
+        if self._image is not None and frame.image is not None:
+            self._image.publish(frame.image)
+        if self._info is not None:
+            self._info.publish(frame.camera_info)
+        if self._depth is not None and frame.depth_image is not None:
+            self._depth.publish(frame.depth_image)
+        if self._depth_info is not None and frame.depth_camera_info is not None:
+            self._depth_info.publish(frame.depth_camera_info)
+        if self._points is not None and frame.points is not None:
+            self._points.publish(frame.points)
+
+
+# --------------------------------------------------------------------------- IMU
+
+
+class ImuPlugin(SimPlugin):
+    """``libgazebo_ros_imu_sensor.so``: MuJoCo gyro, accelerometer and frame orientation.
+
+    Angular velocity and linear acceleration (including the reaction to gravity,
+    +9.81 m/s^2 up at rest, as a real IMU) are in the sensor frame; the orientation
+    is the sensor frame's in the world (or relative to the first sample with
+    ``initial_orientation_as_reference``). Noise follows Gazebo's gaussian model per
+    axis (a bias drawn once, plus white noise); covariances are the noise variances.
+
+    Args:
+        node: the plugin's node.
+        spec: the IMU with its final topic and frame.
+        model: the compiled model.
+        sensors: MuJoCo gyro, accelerometer and framequat sensor names.
+        rng: the noise generator.
+        start_ns: sim time of the first possible sample.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        spec: ImuSpec,
+        model: mujoco.MjModel,
+        sensors: tuple[str, str, str],
+        *,
+        rng: np.random.Generator,
+        start_ns: int = 0,
+    ) -> None:
+        super().__init__(node, spec.name)
+        self.spec = spec
+        self.clock = SensorClock(spec.update_rate, start_ns=start_ns)
+        self._adr = [int(model.sensor(name).adr[0]) for name in sensors]
+        self._rng = rng
+        self._gyro_noise = [_Noise(n, rng) for n in spec.angular_velocity_noise]
+        self._accel_noise = [_Noise(n, rng) for n in spec.linear_acceleration_noise]
+        self._reference: NDArray[np.float64] | None = None
+        gyro_var = [n.stddev**2 for n in spec.angular_velocity_noise]
+        accel_var = [n.stddev**2 for n in spec.linear_acceleration_noise]
+        orient_var = spec.orientation_noise_stddev**2
+        self._cov_gyro = np.diag(gyro_var).reshape(-1)
+        self._cov_accel = np.diag(accel_var).reshape(-1)
+        self._cov_orient = np.diag([orient_var] * 3).reshape(-1)
+        topic = spec.topic or f"/{spec.name}/out"
+        self._pub = node.create_publisher(Imu, topic, SENSOR_QOS)
+
+    def after_step(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Read the sensor at ``now_ns`` when due and publish."""
+        if not self.clock.due(now_ns):
+            return
+        rng = self._rng
+        g, a, q = self._adr
+        raw = data.sensordata
+        gyro = [self._gyro_noise[i].apply(float(raw[g + i]), rng) for i in range(3)]
+        accel = [self._accel_noise[i].apply(float(raw[a + i]), rng) for i in range(3)]
+        w, x, y, z = (float(v) for v in raw[q : q + 4])  # MuJoCo order w, x, y, z
+        rot = quat_xyzw_to_matrix((x, y, z, w))
+        if self.spec.initial_orientation_as_reference:
+            if self._reference is None:
+                self._reference = rot.copy()
+            rot = self._reference.T @ rot
+        if self.spec.orientation_noise_stddev > 0.0:
+            tilt = rng.normal(0.0, self.spec.orientation_noise_stddev, 3)
+            rot = rot @ rpy_to_matrix([float(v) for v in tilt])
+        self._pub.publish(
+            Imu(
+                header=_header(now_ns, self.spec.frame_id),
+                orientation=_quaternion(matrix_to_quat_xyzw(rot)),
+                orientation_covariance=self._cov_orient.copy(),
+                angular_velocity=_vector(gyro),
+                angular_velocity_covariance=self._cov_gyro.copy(),
+                linear_acceleration=_vector(accel),
+                linear_acceleration_covariance=self._cov_accel.copy(),
+            )
+        )
+
+
+# --------------------------------------------------------------------------- p3d
+
+
+class OdometryPlugin(SimPlugin):
+    """``libgazebo_ros_p3d.so``: ground-truth ``nav_msgs/Odometry`` of a body.
+
+    As gazebo_ros_p3d: the pose is the body frame's in the world (or relative to
+    ``frame_name`` when that is a link), ``xyz_offset`` is added to the position and
+    ``rpy_offset`` rotates the orientation; the twist is the body origin's velocity
+    expressed in that reference frame (not in the body frame), with gaussian noise;
+    both covariance diagonals are the noise variance. ``publish_tf`` broadcasts
+    ``frame_id -> child_frame_id``.
+
+    Args:
+        node: the plugin's node.
+        spec: the plugin with its final topic and frames.
+        model: the compiled model.
+        body: MuJoCo body id of the tracked link.
+        reference: MuJoCo body id of ``frame_name`` when it is a link, else None (world).
+        rng: the noise generator.
+        start_ns: sim time of the first possible sample.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        spec: OdometrySpec,
+        model: mujoco.MjModel,
+        *,
+        body: int,
+        reference: int | None,
+        rng: np.random.Generator,
+        start_ns: int = 0,
+    ) -> None:
+        super().__init__(node, spec.plugin_name)
+        self.spec = spec
+        self.clock = SensorClock(spec.update_rate, start_ns=start_ns)
+        self._body = BodyReader(model, body)
+        self._reference = BodyReader(model, reference) if reference is not None else None
+        self._rng = rng
+        self._offset_xyz = np.asarray(spec.xyz_offset, dtype=np.float64)
+        self._offset_rot = rpy_to_matrix(spec.rpy_offset)
+        self._has_offset = bool(np.any(self._offset_xyz)) or any(spec.rpy_offset)
+        cov = np.zeros(36)
+        cov[[0, 7, 14, 21, 28, 35]] = spec.gaussian_noise**2
+        self._cov = cov
+        self._pub = node.create_publisher(Odometry, spec.topic, DEFAULT_QOS)
+        self._tf = TransformBroadcaster(node) if spec.publish_tf else None
+
+    def sense(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Measure at ``now_ns`` when due and publish."""
+        if not self.clock.due(now_ns):
+            return
+        state = self._body.read(data)
+        pos, rot, lin, ang = state.position, state.rotation, state.linear, state.angular
+        if self._reference is not None:
+            ref = self._reference.read(data)
+            r_t = ref.rotation.T
+            pos = r_t @ (pos - ref.position)
+            rot = r_t @ rot
+            lin = r_t @ (lin - ref.linear)
+            ang = r_t @ (ang - ref.angular)
+        if self._has_offset:
+            pos = pos + self._offset_xyz
+            rot = self._offset_rot @ rot
+        noise = self.spec.gaussian_noise
+        if noise > 0.0:
+            lin = lin + self._rng.normal(0.0, noise, 3)
+            ang = ang + self._rng.normal(0.0, noise, 3)
+        header = _header(now_ns, self.spec.frame_id)
+        quat = _quaternion(matrix_to_quat_xyzw(rot))
+        self._pub.publish(
+            Odometry(
+                header=header,
+                child_frame_id=self.spec.child_frame_id,
+                pose=PoseWithCovariance(
+                    pose=Pose(position=Point(x=pos[0], y=pos[1], z=pos[2]), orientation=quat),
+                    covariance=self._cov.copy(),
+                ),
+                twist=TwistWithCovariance(
+                    twist=Twist(linear=_vector(lin), angular=_vector(ang)),
+                    covariance=self._cov.copy(),
+                ),
+            )
+        )
+        if self._tf is not None:
+            self._tf.send_transform(
+                TransformStamped(
+                    header=header,
+                    child_frame_id=self.spec.child_frame_id,
+                    transform=Transform(translation=_vector(pos), rotation=quat),
+                )
+            )
+
+
+# --------------------------------------------------------------------------- diff drive
+
+
+class DiffDrivePlugin(SimPlugin):
+    """``libgazebo_ros_diff_drive.so``: ``cmd_vel`` in; ``odom`` and its TF out.
+
+    The wheels are driven by :class:`~visnav.sim.vehicles.diff_drive.DiffDriveController`
+    (its docstring lists where it differs from Gazebo). With ``publish_wheel_tf``
+    the wheel joints' transforms go on ``/tf`` at the plugin's update rate.
+
+    Args:
+        node: the plugin's node.
+        spec: the plugin with its final topics and frames.
+        controller: drives the wheels and produces the odometry.
+        wheels: ``(URDF joint, qpos address)`` of the wheel joints, for the wheel TF.
+        robot_state: the robot's kinematics (with its frame prefix), for the wheel TF.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        spec: DiffDriveSpec,
+        controller: DiffDriveController,
+        *,
+        wheels: Sequence[tuple[str, int]] = (),
+        robot_state: RobotStateModel | None = None,
+    ) -> None:
+        super().__init__(node, spec.plugin_name)
+        self.spec = spec
+        self.controller = controller
+        self._odom = (
+            node.create_publisher(Odometry, spec.odometry_topic, DEFAULT_QOS)
+            if spec.publish_odom
+            else None
+        )
+        publish_tf = spec.publish_odom_tf or (spec.publish_wheel_tf and bool(wheels))
+        self._tf = TransformBroadcaster(node) if publish_tf else None
+        self._wheels = list(wheels) if spec.publish_wheel_tf else []
+        self._robot_state = robot_state
+        node.create_subscription(Twist, spec.command_topic, self._on_cmd_vel, DEFAULT_QOS)
+
+    def _on_cmd_vel(self, msg: Twist) -> None:
+        self.controller.set_command(float(msg.linear.x), float(msg.angular.z))
+
+    def control(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Apply the controller for the step at ``now_ns``."""
+        sample = self.controller.step(data, now_ns)
+        if sample is None:
+            return
+        if self._odom is not None:
+            self._odom.publish(sample.to_msg())
+        if self._tf is None:
+            return
+        transforms = [sample.to_transform()] if self.spec.publish_odom_tf else []
+        if self._wheels and self._robot_state is not None:
+            stamp = ns_to_time(now_ns)
+            rs = self._robot_state
+            for joint, qpos in self._wheels:
+                spec = rs.moving_joints[joint]
+                matrix = rs.joint_transform(joint, float(data.qpos[qpos]))
+                transforms.append(
+                    TransformStamped(
+                        header=Header(stamp=stamp, frame_id=rs.frame(spec.parent)),
+                        child_frame_id=rs.frame(spec.child),
+                        transform=Transform(
+                            translation=_vector(matrix[:3, 3]),
+                            rotation=_quaternion(matrix_to_quat_xyzw(matrix[:3, :3])),
+                        ),
+                    )
+                )
+        if transforms:
+            self._tf.send_transform(transforms)
+
+
+# --------------------------------------------------------------------------- joint states
+
+
+class JointStatePlugin(SimPlugin):
+    """``libgazebo_ros_joint_state_publisher.so``: position, velocity and effort of joints.
+
+    Effort is the generalized force applied to the joint (``qfrc_applied`` plus
+    ``qfrc_actuator``), as Gazebo reports the joint's applied force.
+
+    Args:
+        node: the plugin's node.
+        spec: the plugin with its final topic.
+        model: the compiled model.
+        joints: ``(URDF joint name, MuJoCo joint name)`` of the published joints.
+        start_ns: sim time of the first possible message.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        spec: JointStatePublisherSpec,
+        model: mujoco.MjModel,
+        joints: Sequence[tuple[str, str]],
+        *,
+        start_ns: int = 0,
+    ) -> None:
+        super().__init__(node, spec.plugin_name)
+        self.spec = spec
+        self.clock = SensorClock(spec.update_rate, start_ns=start_ns)
+        self._names = [name for name, _ in joints]
+        ids = [model.joint(mj).id for _, mj in joints]
+        self._qpos = np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64)
+        self._dof = np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64)
+        self._pub = node.create_publisher(JointState, spec.topic, DEFAULT_QOS)
+
+    def sense(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Measure at ``now_ns`` when due and publish."""
+        if not self.clock.due(now_ns):
+            return
+        dof = self._dof
+        self._pub.publish(
+            JointState(
+                header=_header(now_ns, ""),
+                name=list(self._names),
+                position=np.array(data.qpos[self._qpos], dtype=np.float64),
+                velocity=np.array(data.qvel[dof], dtype=np.float64),
+                effort=np.asarray(data.qfrc_applied[dof] + data.qfrc_actuator[dof]),
+            )
+        )
+
+
+# --------------------------------------------------------------------------- quadrotor
+
+
+def trajectory_point_command(
+    msg: MultiDOFJointTrajectory, index: int, *, stamp_ns: int = 0
+) -> PositionCommand:
+    """The :class:`PositionCommand` of one point of a ``MultiDOFJointTrajectory``.
+
+    ``transforms[0]`` gives position and yaw, ``velocities[0]`` velocity and yaw rate
+    (``angular.z``), ``accelerations[0]`` the feed-forward acceleration; a missing
+    velocity or acceleration is zero (RotorS' convention). NaN components drop the
+    term, as in ``so3_control``.
+    """
+    point = msg.points[index]
+    transform = point.transforms[0]
+    t = transform.translation
+    velocity = point.velocities[0] if len(point.velocities) > 0 else None
+    accel = point.accelerations[0] if len(point.accelerations) > 0 else None
+    return PositionCommand(
+        stamp_ns=stamp_ns,
+        frame_id=msg.header.frame_id or "world",
+        position=(float(t.x), float(t.y), float(t.z)),
+        velocity=(
+            (float(velocity.linear.x), float(velocity.linear.y), float(velocity.linear.z))
+            if velocity is not None
+            else (0.0, 0.0, 0.0)
+        ),
+        acceleration=(
+            (float(accel.linear.x), float(accel.linear.y), float(accel.linear.z))
+            if accel is not None
+            else (0.0, 0.0, 0.0)
+        ),
+        yaw=_yaw_of(transform.rotation),
+        yaw_dot=float(velocity.angular.z) if velocity is not None else 0.0,
+    )
+
+
+class QuadrotorPlugin(SimPlugin):
+    """``libvisnav_quadrotor.so``: position commands in, thrust and moments on the body.
+
+    Commands arrive three ways (each replaces the previous one):
+
+    * ``trajectory_topic`` (``trajectory_msgs/MultiDOFJointTrajectory``, RotorS'
+      ``command/trajectory``): the first point applies at once, each later point
+      ``time_from_start`` after it (relative to the first point), in sim time;
+    * ``pose_topic`` (``geometry_msgs/PoseStamped``, RotorS' ``command/pose``):
+      hold that position and yaw;
+    * :meth:`set_command` with a :class:`~visnav.sim.vehicles.quadrotor.PositionCommand`
+      (the fields of ``quadrotor_msgs/PositionCommand``), from Python.
+
+    Without a command the vehicle holds where it started.
+
+    Args:
+        node: the plugin's node.
+        spec: the plugin with its final topics.
+        controller: the SO(3) controller flying the body.
+    """
+
+    def __init__(self, node: Node, spec: QuadrotorSpec, controller: QuadrotorController) -> None:
+        super().__init__(node, spec.plugin_name)
+        self.spec = spec
+        self.controller = controller
+        self._queue: deque[tuple[int, PositionCommand]] = deque()
+        self._now_ns = 0
+        node.create_subscription(
+            MultiDOFJointTrajectory, spec.trajectory_topic, self._on_trajectory, DEFAULT_QOS
+        )
+        node.create_subscription(PoseStamped, spec.pose_topic, self._on_pose, DEFAULT_QOS)
+
+    def set_command(self, command: PositionCommand) -> None:
+        """Track ``command`` from the next physics step on (drops queued trajectory points)."""
+        self._queue.clear()
+        self.controller.set_command(command)
+
+    def _on_trajectory(self, msg: MultiDOFJointTrajectory) -> None:
+        points = list(msg.points)
+        usable = [i for i, p in enumerate(points) if len(p.transforms) > 0]
+        if len(usable) < len(points):
+            self.node.get_logger().warning(
+                f"{self.spec.trajectory_topic}: {len(points) - len(usable)} of {len(points)} "
+                "trajectory points have no transforms[0] (position and yaw) and were ignored"
+            )
+        if not usable:
+            if not points:
+                self.node.get_logger().warning(
+                    f"{self.spec.trajectory_topic}: a trajectory without points was ignored"
+                )
+            return
+        self._queue.clear()
+        first = duration_to_ns(points[usable[0]].time_from_start)
+        for i in usable:
+            due = self._now_ns + duration_to_ns(points[i].time_from_start) - first
+            self._queue.append((due, trajectory_point_command(msg, i, stamp_ns=due)))
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        p = msg.pose.position
+        self.set_command(
+            PositionCommand.hold(
+                (float(p.x), float(p.y), float(p.z)),
+                _yaw_of(msg.pose.orientation),
+                stamp_ns=self._now_ns,
+            )
+        )
+
+    def control(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Apply the controller for the step at ``now_ns``."""
+        self._now_ns = now_ns  # commands arriving in this step's spin start now
+        queue = self._queue
+        while queue and queue[0][0] <= now_ns:
+            self.controller.set_command(queue.popleft()[1])
+        self.controller.step(data)
+
+
+# --------------------------------------------------------------------------- robot_state_publisher
+
+
+class RobotStatePublisher:
+    """robot_state_publisher: ``robot_description``, ``/tf_static`` once, ``/tf`` per JointState.
+
+    Args:
+        node: the node (``robot_state_publisher`` in the robot's namespace).
+        model: the robot's kinematics (with its frame prefix).
+        description: the URDF XML, published latched on ``robot_description``.
+        joint_states_topic: where joint states arrive.
+        stamp_ns: stamp of the static transforms.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        model: RobotStateModel,
+        description: str,
+        *,
+        joint_states_topic: str = "joint_states",
+        stamp_ns: int = 0,
+    ) -> None:
+        self.node = node
+        self.model = model
+        node.create_publisher(String, "robot_description", LATCHED_QOS).publish(
+            String(data=description)
+        )
+        self._static = StaticTransformBroadcaster(node)
+        statics = model.static_transforms(stamp_ns=stamp_ns)
+        if statics:
+            self._static.send_transform(statics)
+        self._tf = TransformBroadcaster(node)
+        self._sub = None
+        if model.moving_joints:
+            self._sub = node.create_subscription(
+                JointState, joint_states_topic, self._on_joint_states, DEFAULT_QOS
+            )
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        try:
+            transforms = self.model.dynamic_transforms(msg)
+        except RobotStateError as exc:
+            self.node.get_logger().warning(f"dropped a JointState: {exc}")
+            return
+        if transforms:
+            self._tf.send_transform(transforms)
+
+    def close(self) -> None:
+        """Destroy the node."""
+        self.node.destroy_node()

@@ -1,0 +1,778 @@
+"""The simulator: a world, robots with Gazebo-style sensors and plugins, a sim clock.
+
+::
+
+    from visnav.graph import Context
+    from visnav.sim.simulator import RobotSpawn, Simulator
+
+    with Context() as ctx, Simulator("office", [RobotSpawn(source="car")], context=ctx) as sim:
+        stats = sim.run(10.0)              # 10 s of sim time, lock-step, as fast as it goes
+        print(stats.real_time_factor)
+
+The world and the robots become one MuJoCo model; each ``<gazebo>`` sensor and
+plugin of a robot becomes a graph node in the given context (see
+:mod:`visnav.sim.plugins`): cameras and depth cameras (with point clouds), p3d
+ground truth, the differential drive, IMUs, joint states, the quadrotor, and a
+robot_state_publisher (``robot_description``, ``/tf_static`` for fixed joints,
+``/tf`` from the joint states). A node ``/sim`` publishes ``/clock``
+(``rosgraph_msgs/Clock``).
+
+Time. Physics advances in fixed steps of the world's ``physics.timestep``;
+sim time is the integer ``k * dt`` in nanoseconds. Each step: ``mj_step1``
+(state at ``t``), ``/clock`` = ``t``, sensors due at ``t`` publish (each on its
+own drift-free schedule), controllers act, then the simulator runs the callbacks
+ready in the context (:meth:`~visnav.graph.Context.spin_some`) so in-process
+nodes react at sim time ``t`` (their ``use_sim_time`` timers fire), then
+``mj_step2`` integrates to ``t + dt``. This is lock-step and, for a seed,
+deterministic: two runs give identical messages (nodes in other processes see
+the same messages but react asynchronously). With ``realtime=True`` the loop waits
+for the wall clock (spinning the context meanwhile); either way
+:attr:`Simulator.stats` reports the real-time factor and the share of wall time
+spent rendering. Cameras render only when due, with MSAA off by default.
+
+Robots. Built-in names (``car``, ``quadrotor``), URDF / Xacro files or XML text,
+or loaded :class:`~visnav.sim.robot.RobotDescription`; see :class:`RobotSpawn`
+for the spawn pose (default: the world's ``spawn`` / ``start`` metadata, resting
+on the ground), a topic namespace and a TF frame prefix per robot.
+
+Where visnav differs from Gazebo: ``/clock`` is published every physics step by
+default (gazebo_ros publishes it at 10 Hz in ROS 2), so ``use_sim_time`` timers
+fire on time; plugin nodes stamp with sim time but do not subscribe to ``/clock``
+themselves; a robot namespace is prefixed to every topic of the robot, including
+absolute remappings.
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+import math
+import os
+import re
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from visnav.errors import VisnavError
+from visnav.graph.context import Context
+from visnav.graph.node import Node
+from visnav.graph.qos import QoSProfile
+from visnav.msgs.time import ns_to_time
+from visnav.msgs.types import Clock
+from visnav.sim.camera import CameraSensor, RenderContext, render_layout
+from visnav.sim.gazebo_specs import CameraSpec
+from visnav.sim.plugins import (
+    CameraPlugin,
+    DiffDrivePlugin,
+    ImuPlugin,
+    JointStatePlugin,
+    OdometryPlugin,
+    QuadrotorPlugin,
+    RobotStatePublisher,
+    SimPlugin,
+)
+from visnav.sim.robot import RobotDescription, RobotHandles, add_robot_to_spec, load_robot
+from visnav.sim.robot_state import RobotStateModel
+from visnav.sim.sensor_timing import SensorClock, sensor_seed
+from visnav.sim.urdf import RobotDescriptionError
+from visnav.sim.vehicles.car import car_description_path
+from visnav.sim.vehicles.diff_drive import DiffDriveController
+from visnav.sim.vehicles.quadrotor import (
+    PositionCommand,
+    QuadrotorController,
+    QuadrotorParams,
+    quadrotor_description_path,
+)
+from visnav.sim.world import WorldDescription, build_world_spec, load_world
+
+__all__ = [
+    "BUILTIN_ROBOTS",
+    "RobotSpawn",
+    "SimRobot",
+    "SimStats",
+    "Simulator",
+    "SimulatorError",
+    "builtin_robot_names",
+    "resolve_robot",
+]
+
+BUILTIN_ROBOTS: Mapping[str, Callable[[], Path]] = {
+    "car": car_description_path,
+    "quadrotor": quadrotor_description_path,
+}
+"""Built-in robot name -> the function returning its Xacro file."""
+
+_ROBOT_SUFFIXES = (".urdf", ".xacro", ".xml")
+_NODE_NAME = re.compile(r"[^A-Za-z0-9_]")
+_CLOCK_QOS = QoSProfile(depth=1)
+_MAX_BACKLOG_NS = 100_000_000  # realtime: wall-clock lag dropped instead of caught up
+_LOG = logging.getLogger("visnav.sim")
+
+
+class SimulatorError(VisnavError, ValueError):
+    """The simulation cannot be built from the given world and robots."""
+
+
+def builtin_robot_names() -> tuple[str, ...]:
+    """Names of the built-in robots."""
+    return tuple(sorted(BUILTIN_ROBOTS))
+
+
+def resolve_robot(
+    source: str | os.PathLike[str] | RobotDescription,
+    *,
+    args: Mapping[str, str] | None = None,
+    packages: Mapping[str, Path | str] | None = None,
+) -> RobotDescription:
+    """Load a robot from a built-in name, a URDF / Xacro file or XML text.
+
+    Args:
+        source: ``car``, ``quadrotor``, a file path, URDF XML, or a loaded description.
+        args: Xacro ``name:=value`` arguments.
+        packages: package name -> directory for ``package://`` and ``$(find pkg)``.
+
+    Raises:
+        RobotDescriptionError: an unknown name (with the closest built-in name), a
+            missing file or an invalid description.
+    """
+    if isinstance(source, RobotDescription):
+        return source
+    text = os.fspath(source)
+    if text.lstrip().startswith("<"):
+        return load_robot(text, args=args, packages=packages)
+    path = Path(text)
+    looks_like_file = path.suffix.lower() in _ROBOT_SUFFIXES or os.sep in text or path.exists()
+    if not looks_like_file:
+        maker = BUILTIN_ROBOTS.get(text)
+        if maker is None:
+            close = difflib.get_close_matches(text, list(BUILTIN_ROBOTS), n=1, cutoff=0.5)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            msg = (
+                f"unknown robot {text!r}{hint} Built-in robots: {', '.join(builtin_robot_names())}"
+                "; or give the path of a .urdf / .urdf.xacro file"
+            )
+            raise RobotDescriptionError(msg)
+        return load_robot(maker(), args=args, packages=packages)
+    if not path.is_file():
+        msg = (
+            f"robot file {text!r} does not exist (built-in robots: "
+            f"{', '.join(builtin_robot_names())})"
+        )
+        raise RobotDescriptionError(msg)
+    return load_robot(path, args=args, packages=packages)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RobotSpawn:
+    """One robot to put into the world.
+
+    Attributes:
+        source: a built-in name (``car``, ``quadrotor``), a URDF / Xacro file, URDF
+            XML text, or a loaded :class:`~visnav.sim.robot.RobotDescription`.
+        args: Xacro ``name:=value`` arguments.
+        packages: package name -> directory for ``package://`` / ``$(find pkg)``.
+        name: the robot's MuJoCo name prefix (``<name>/``); default the URDF
+            ``<robot name>``, made unique.
+        spawn: ``(x, y, z, yaw)`` of the root link in the world (m, rad); default
+            the world's ``spawn`` ([x, y, yaw]) or ``start`` metadata (facing ``goal``),
+            else the origin, with a free-floating robot resting on the ground.
+        namespace: pushed onto every topic of the robot (``/r1`` makes
+            ``/camera/image_raw`` ``/r1/camera/image_raw``), like spawning a Gazebo
+            robot with ``-robot_namespace``; the robot's nodes live in it.
+        frame_prefix: prepended to every TF frame id of the robot (``r1/`` makes
+            ``base_link`` ``r1/base_link``), as robot_state_publisher's
+            ``frame_prefix``; ``world`` and ``map`` stay unprefixed.
+    """
+
+    source: str | os.PathLike[str] | RobotDescription = "car"
+    args: Mapping[str, str] = field(default_factory=dict)
+    packages: Mapping[str, Path | str] | None = None
+    name: str | None = None
+    spawn: tuple[float, float, float, float] | None = None
+    namespace: str = "/"
+    frame_prefix: str = ""
+
+
+@dataclass(frozen=True)
+class SimStats:
+    """Timing of a run (or of the whole simulation).
+
+    Attributes:
+        sim_time_s: simulated seconds.
+        wall_time_s: wall-clock seconds.
+        steps: physics steps.
+        render_time_s: wall seconds spent rendering cameras.
+        frames: camera frames rendered.
+    """
+
+    sim_time_s: float
+    wall_time_s: float
+    steps: int
+    render_time_s: float
+    frames: int
+
+    @property
+    def real_time_factor(self) -> float:
+        """Sim time per wall time (inf for an instantaneous run)."""
+        return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else math.inf
+
+    @property
+    def render_share(self) -> float:
+        """Fraction of wall time spent rendering."""
+        return self.render_time_s / self.wall_time_s if self.wall_time_s > 0 else 0.0
+
+    def summary(self) -> str:
+        """One line: sim time, wall time, real-time factor, rendering share."""
+        return (
+            f"sim time {self.sim_time_s:.2f} s in {self.wall_time_s:.2f} s wall: real-time "
+            f"factor {self.real_time_factor:.2f} ({self.steps} steps, {self.frames} camera "
+            f"frames, rendering {100.0 * self.render_share:.0f}% of wall time)"
+        )
+
+
+@dataclass
+class SimRobot:
+    """One robot in the running simulation.
+
+    Attributes:
+        name: its name (MuJoCo prefix without the slash).
+        description: the loaded robot.
+        handles: its MuJoCo element names.
+        namespace: its topic namespace.
+        frame_prefix: its TF frame prefix.
+        plugins: its sensor and plugin runtimes.
+        robot_state: its robot_state_publisher.
+        quadrotor: its quadrotor plugin, if it flies.
+    """
+
+    name: str
+    description: RobotDescription
+    handles: RobotHandles
+    namespace: str
+    frame_prefix: str
+    plugins: list[SimPlugin] = field(default_factory=list)
+    robot_state: RobotStatePublisher | None = None
+    quadrotor: QuadrotorPlugin | None = None
+
+
+def _namespace(ns: str) -> str:
+    stripped = ns.strip("/")
+    return "/" + stripped if stripped else "/"
+
+
+def _push(ns: str, topic: str | None) -> str | None:
+    if topic is None or ns == "/":
+        return topic
+    return ns + "/" + topic.lstrip("/")
+
+
+def _node_name(text: str) -> str:
+    name = _NODE_NAME.sub("_", text) or "plugin"
+    return name if not name[0].isdigit() else "_" + name
+
+
+def _default_spawn(world: WorldDescription) -> tuple[float, float, float]:
+    meta = world.metadata
+    spawn = meta.get("spawn")
+    if isinstance(spawn, (list, tuple)) and len(spawn) >= 2:
+        yaw = float(spawn[2]) if len(spawn) >= 3 else 0.0
+        return float(spawn[0]), float(spawn[1]), yaw
+    start = meta.get("start")
+    if isinstance(start, (list, tuple)) and len(start) >= 2:
+        x, y = float(start[0]), float(start[1])
+        goal = meta.get("goal")
+        yaw = 0.0
+        if isinstance(goal, (list, tuple)) and len(goal) >= 2:
+            yaw = math.atan2(float(goal[1]) - y, float(goal[0]) - x)
+        return x, y, yaw
+    return 0.0, 0.0, 0.0
+
+
+class Simulator:
+    """A MuJoCo world with robots whose sensors and plugins publish on the graph.
+
+    Args:
+        world: a :class:`~visnav.sim.world.WorldDescription`, a built-in world name or
+            a world file (:func:`~visnav.sim.world.load_world`).
+        robots: the robots (:class:`RobotSpawn`, or just a source each).
+        context: the graph context; every simulator node is created in it, so
+            in-process subscribers get messages without copies.
+        seed: seeds every sensor's noise and the vehicles' disturbances (per sensor,
+            :func:`~visnav.sim.sensor_timing.sensor_seed`).
+        realtime: pace sim time to the wall clock (otherwise as fast as possible).
+        real_time_factor: the target ratio of sim to wall time when ``realtime``.
+        clock_rate: ``/clock`` messages per simulated second; 0 = every physics step.
+        msaa_samples: multisampling of the camera renders (0 = off, the cheap default;
+            MuJoCo's default 4 costs about as much again in software GL).
+        node: the node that publishes ``/clock`` (default: a new node ``sim``, destroyed
+            by :meth:`close`).
+
+    Raises:
+        SimulatorError: MuJoCo rejects the composed model, or a plugin does not fit it.
+        RobotDescriptionError, WorldError: a robot or the world cannot be loaded.
+        RenderingUnavailableError: a robot has cameras but there is no headless OpenGL.
+    """
+
+    def __init__(
+        self,
+        world: WorldDescription | str | os.PathLike[str],
+        robots: Sequence[RobotSpawn | str | os.PathLike[str] | RobotDescription] = (),
+        *,
+        context: Context,
+        seed: int = 0,
+        realtime: bool = False,
+        real_time_factor: float = 1.0,
+        clock_rate: float = 0.0,
+        msaa_samples: int = 0,
+        node: Node | None = None,
+    ) -> None:
+        if not (math.isfinite(real_time_factor) and real_time_factor > 0):
+            msg = f"real_time_factor is {real_time_factor}: expected a positive number"
+            raise SimulatorError(msg)
+        self.context = context
+        self.seed = int(seed)
+        self.realtime = realtime
+        self.real_time_factor = float(real_time_factor)
+        self.world = world if isinstance(world, WorldDescription) else load_world(world)
+        spawns = [r if isinstance(r, RobotSpawn) else RobotSpawn(source=r) for r in robots]
+        spec = build_world_spec(self.world)
+        spec.visual.quality.offsamples = int(msaa_samples)
+        placed = self._add_robots(spec, spawns)
+        try:
+            self.model = spec.compile()
+        except Exception as exc:  # MuJoCo raises ValueError and others
+            msg = f"MuJoCo cannot compile world {self.world.name!r} with the robots: {exc}"
+            raise SimulatorError(msg) from exc
+        self.data = mujoco.MjData(self.model)
+        self._rest_on_ground(placed)
+        mujoco.mj_forward(self.model, self.data)
+        self._dt_ns = round(float(self.model.opt.timestep) * 1e9)
+        self._split = self.model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4
+        self._now_ns = 0
+        self._steps = 0
+        self._wall_ns = 0
+        self._render_ctx: RenderContext | None = None
+        self._cameras: list[CameraPlugin] = []
+        self._clock = SensorClock(clock_rate)
+        self._pace_ref = (0, 0)
+        self._closed = False
+        self.robots: list[SimRobot] = []
+        cameras = [c for desc, *_ in placed for c in desc.gazebo.cameras if _publishes(c)]
+        if cameras:
+            layouts = [render_layout(c, with_maps=False) for c in cameras]
+            self._render_ctx = RenderContext(
+                self.model,
+                max_width=max(layout.width for layout in layouts),
+                max_height=max(layout.height for layout in layouts),
+            )
+        self._owns_node = node is None
+        self._node = node if node is not None else Node("sim", context=context)
+        self._clock_pub = self._node.create_publisher(Clock, "/clock", _CLOCK_QOS)
+        try:
+            for desc, handles, spawn, name in placed:
+                self.robots.append(self._make_robot(desc, handles, spawn, name))
+        except Exception:
+            self.close()
+            raise
+        plugins = [p for r in self.robots for p in r.plugins]
+        self._sense = [p.sense for p in plugins if type(p).sense is not SimPlugin.sense]
+        self._control = [p.control for p in plugins if type(p).control is not SimPlugin.control]
+        self._after = [
+            p.after_step for p in plugins if type(p).after_step is not SimPlugin.after_step
+        ]
+
+    # ------------------------------------------------------------------ building
+
+    def _add_robots(
+        self, spec: mujoco.MjSpec, spawns: Sequence[RobotSpawn]
+    ) -> list[tuple[RobotDescription, RobotHandles, RobotSpawn, str]]:
+        placed = []
+        used: set[str] = set()
+        default_xy_yaw = _default_spawn(self.world)
+        for spawn in spawns:
+            desc = resolve_robot(spawn.source, args=spawn.args, packages=spawn.packages)
+            base = _node_name(spawn.name or desc.name)
+            name, k = base, 2
+            while name in used:
+                name, k = f"{base}_{k}", k + 1
+            used.add(name)
+            if spawn.spawn is None:
+                x, y, yaw = default_xy_yaw
+                pose: tuple[float, float, float, float] = (x, y, 0.0, yaw)
+            else:
+                if len(spawn.spawn) != 4:
+                    msg = f"robot {name!r}: spawn is {spawn.spawn}: expected (x, y, z, yaw)"
+                    raise SimulatorError(msg)
+                pose = spawn.spawn
+            handles = add_robot_to_spec(spec, desc, prefix=f"{name}/", spawn_xyz_yaw=pose)
+            placed.append((desc, handles, spawn, name))
+        return placed
+
+    def _rest_on_ground(
+        self, placed: Sequence[tuple[RobotDescription, RobotHandles, RobotSpawn, str]]
+    ) -> None:
+        """Lift free-floating robots without an explicit spawn height onto the ground."""
+        model, data = self.model, self.data
+        mujoco.mj_kinematics(model, data)
+        ground = self.world.ground.z if self.world.ground is not None else 0.0
+        for _, handles, spawn, _ in placed:
+            if spawn.spawn is not None or handles.free_joint is None:
+                continue
+            root = model.body(handles.root_body).id
+            lowest = math.inf
+            for g in range(model.ngeom):
+                body = int(model.geom_bodyid[g])
+                if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+                    continue
+                if body != root and not _is_descendant(model, body, root):
+                    continue
+                centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+                signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+                corners = centre + signs * half
+                world = data.geom_xpos[g] + corners @ data.geom_xmat[g].reshape(3, 3).T
+                lowest = min(lowest, float(world[:, 2].min()))
+            if math.isfinite(lowest):
+                adr = model.joint(handles.free_joint).qposadr[0]
+                data.qpos[adr + 2] += ground - lowest
+
+    def _make_robot(
+        self, desc: RobotDescription, handles: RobotHandles, spawn: RobotSpawn, name: str
+    ) -> SimRobot:
+        ns = _namespace(spawn.namespace)
+        prefix = spawn.frame_prefix
+        links = desc.urdf.links
+        model = self.model
+        robot = SimRobot(name, desc, handles, ns, prefix)
+
+        def frame(f: str) -> str:
+            return f if f.lstrip("/") in ("world", "map") or not prefix else prefix + f
+
+        def node(label: str) -> Node:
+            return Node(_node_name(label), namespace=ns, context=self.context)
+
+        def seed_of(label: str) -> int:
+            return sensor_seed(self.seed, f"{name}/{label}")
+
+        state_model = RobotStateModel(desc.urdf, frame_prefix=prefix)
+        gz = desc.gazebo
+        cameras = [c for c in gz.cameras if _publishes(c)]
+        for cam in cameras:
+            cam_spec = replace(
+                cam,
+                frame_id=frame(cam.frame_id),
+                image_topic=_push(ns, cam.image_topic),
+                camera_info_topic=_push(ns, cam.camera_info_topic),
+                depth_topic=_push(ns, cam.depth_topic),
+                depth_info_topic=_push(ns, cam.depth_info_topic),
+                points_topic=_push(ns, cam.points_topic),
+            )
+            sensor = CameraSensor(
+                model,
+                cam_spec,
+                camera=handles.cameras[cam.name],
+                seed=seed_of(cam.name),
+                context=self._render_ctx,
+            )
+            plugin = CameraPlugin(node(cam.plugin_name or cam.name), cam_spec, sensor)
+            self._cameras.append(plugin)
+            robot.plugins.append(plugin)
+        for imu in gz.imus:
+            if imu.topic is None:
+                continue
+            imu_spec = replace(imu, topic=_push(ns, imu.topic), frame_id=frame(imu.frame_id))
+            robot.plugins.append(
+                ImuPlugin(
+                    node(imu.plugin_name or imu.name),
+                    imu_spec,
+                    model,
+                    handles.imu_sensors[imu.name],
+                    rng=np.random.default_rng(seed_of(imu.name)),
+                )
+            )
+        for odom in gz.odometry:
+            reference = None
+            if odom.frame_id in links and odom.frame_id != "world":
+                reference = model.body(handles.bodies[odom.frame_id]).id
+            odom_spec = replace(
+                odom,
+                topic=_push(ns, odom.topic) or odom.topic,
+                frame_id=frame(odom.frame_id),
+                child_frame_id=frame(odom.child_frame_id),
+            )
+            robot.plugins.append(
+                OdometryPlugin(
+                    node(odom.plugin_name),
+                    odom_spec,
+                    model,
+                    body=model.body(handles.bodies[odom.body_name]).id,
+                    reference=reference,
+                    rng=np.random.default_rng(seed_of(odom.plugin_name)),
+                )
+            )
+        for drive in gz.diff_drives:
+            base_link = (
+                drive.robot_base_frame if drive.robot_base_frame in links else desc.urdf.root
+            )
+            drive_spec = replace(
+                drive,
+                command_topic=_push(ns, drive.command_topic) or drive.command_topic,
+                odometry_topic=_push(ns, drive.odometry_topic) or drive.odometry_topic,
+                odometry_frame=frame(drive.odometry_frame),
+                robot_base_frame=frame(drive.robot_base_frame),
+            )
+            controller = DiffDriveController(
+                model, drive_spec, base_body=handles.bodies[base_link], prefix=f"{name}/"
+            )
+            wheels = [
+                (j, int(model.joint(handles.joints[j]).qposadr[0]))
+                for j in (*drive.left_joints, *drive.right_joints)
+            ]
+            robot.plugins.append(
+                DiffDrivePlugin(
+                    node(drive.plugin_name),
+                    drive_spec,
+                    controller,
+                    wheels=wheels,
+                    robot_state=state_model,
+                )
+            )
+        joint_topic = _push(ns, "/joint_states") or "/joint_states"
+        covered: set[str] = set()
+        for jsp in gz.joint_state_publishers:
+            joints = [(j, handles.joints[j]) for j in jsp.joints if j in handles.joints]
+            covered.update(j for j, _ in joints)
+            jsp_spec = replace(jsp, topic=_push(ns, jsp.topic) or jsp.topic)
+            joint_topic = jsp_spec.topic
+            robot.plugins.append(JointStatePlugin(node(jsp.plugin_name), jsp_spec, model, joints))
+        for quad in gz.quadrotors:
+            quad_spec = replace(
+                quad,
+                trajectory_topic=_push(ns, quad.trajectory_topic) or quad.trajectory_topic,
+                pose_topic=_push(ns, quad.pose_topic) or quad.pose_topic,
+            )
+            controller_q = QuadrotorController(
+                model,
+                body=handles.bodies[quad.body_name],
+                params=QuadrotorParams.from_plugin_params(dict(quad.parameters)),
+                seed=seed_of(quad.plugin_name),
+            )
+            robot.quadrotor = QuadrotorPlugin(node(quad.plugin_name), quad_spec, controller_q)
+            robot.plugins.append(robot.quadrotor)
+        missing = [j for j in state_model.moving_joints if j not in covered]
+        if missing:
+            _LOG.warning(
+                "robot %r: moving joints %s are in no libgazebo_ros_joint_state_publisher.so "
+                "plugin, so robot_state_publisher puts their child frames on no /tf",
+                name,
+                missing,
+            )
+        robot.robot_state = RobotStatePublisher(
+            node("robot_state_publisher"),
+            state_model,
+            desc.xml,
+            joint_states_topic=joint_topic,
+            stamp_ns=self._now_ns,
+        )
+        return robot
+
+    # ------------------------------------------------------------------ running
+
+    @property
+    def now_ns(self) -> int:
+        """Sim time of the current state (ns)."""
+        return self._now_ns
+
+    @property
+    def sim_time_s(self) -> float:
+        """Sim time of the current state (s)."""
+        return self._now_ns * 1e-9
+
+    @property
+    def timestep_ns(self) -> int:
+        """Physics step (ns)."""
+        return self._dt_ns
+
+    @property
+    def stats(self) -> SimStats:
+        """Timing since the simulator was created."""
+        return SimStats(
+            sim_time_s=self._now_ns * 1e-9,
+            wall_time_s=self._wall_ns * 1e-9,
+            steps=self._steps,
+            render_time_s=sum(c.render_ns for c in self._cameras) * 1e-9,
+            frames=sum(c.frames for c in self._cameras),
+        )
+
+    def robot(self, name: str | None = None) -> SimRobot:
+        """The robot called ``name`` (default: the only or first robot).
+
+        Raises:
+            SimulatorError: no such robot.
+        """
+        if name is None and self.robots:
+            return self.robots[0]
+        for robot in self.robots:
+            if robot.name == name:
+                return robot
+        names = [r.name for r in self.robots]
+        msg = f"no robot {name!r} in the simulation (robots: {names})"
+        raise SimulatorError(msg)
+
+    def set_position_command(self, command: PositionCommand, *, robot: str | None = None) -> None:
+        """Give a quadrotor a ``PositionCommand`` (the Python way to fly it).
+
+        Raises:
+            SimulatorError: the robot has no ``libvisnav_quadrotor.so`` plugin.
+        """
+        target = self.robot(robot)
+        if target.quadrotor is None:
+            msg = (
+                f"robot {target.name!r} has no libvisnav_quadrotor.so plugin; position "
+                "commands fly quadrotors (use cmd_vel for a diff drive)"
+            )
+            raise SimulatorError(msg)
+        target.quadrotor.set_command(command)
+
+    def _step_once(self, *, spin: bool = True) -> None:
+        model, data, now = self.model, self.data, self._now_ns
+        if self._split:
+            mujoco.mj_step1(model, data)
+        else:
+            mujoco.mj_forward(model, data)
+        if self._clock.due(now):
+            self._clock_pub.publish(Clock(clock=ns_to_time(now)))
+        for sense in self._sense:
+            sense(data, now)
+        for control in self._control:
+            control(data, now)
+        if spin:
+            self.context.spin_some()
+        if self._split:
+            mujoco.mj_step2(model, data)
+        else:
+            mujoco.mj_step(model, data)
+        for after in self._after:
+            after(data, now)
+        self._now_ns = now + self._dt_ns
+        self._steps += 1
+
+    def step(self, n: int = 1, *, spin: bool = True) -> None:
+        """Advance ``n`` physics steps (never paced to the wall clock).
+
+        Args:
+            n: physics steps.
+            spin: run the context's ready callbacks after each step (lock-step). Each
+                spin needs the context idle: do not step with ``spin`` (or :meth:`run`)
+                from a callback of that context, nor while another thread spins it.
+                ``spin=False`` is for stepping from a callback (the caller's executor
+                then delivers the messages, after the ``n`` steps).
+        """
+        self._check_open()
+        start = time.perf_counter_ns()
+        for _ in range(n):
+            self._step_once(spin=spin)
+        self._wall_ns += time.perf_counter_ns() - start
+
+    def run(
+        self, duration_s: float | None = None, *, until: Callable[[], bool] | None = None
+    ) -> SimStats:
+        """Run for ``duration_s`` of sim time (None: until ``until()`` or shutdown).
+
+        Args:
+            duration_s: simulated seconds to run.
+            until: stop as soon as this returns True (checked before every step).
+
+        Returns:
+            The timing of this run (real-time factor, rendering share).
+        """
+        self._check_open()
+        if duration_s is not None and not (math.isfinite(duration_s) and duration_s >= 0):
+            msg = f"duration is {duration_s}: expected a finite number of seconds >= 0"
+            raise SimulatorError(msg)
+        end_ns = None if duration_s is None else self._now_ns + round(duration_s * 1e9)
+        before = self.stats
+        wall0 = time.perf_counter_ns()
+        self._pace_ref = (wall0, self._now_ns)
+        ctx = self.context
+        try:
+            while ctx.ok:
+                if end_ns is not None and self._now_ns >= end_ns:
+                    break
+                if until is not None and until():
+                    break
+                self._step_once()
+                if self.realtime:
+                    self._pace()
+        finally:
+            self._wall_ns += time.perf_counter_ns() - wall0
+        after = self.stats
+        return SimStats(
+            sim_time_s=after.sim_time_s - before.sim_time_s,
+            wall_time_s=after.wall_time_s - before.wall_time_s,
+            steps=after.steps - before.steps,
+            render_time_s=after.render_time_s - before.render_time_s,
+            frames=after.frames - before.frames,
+        )
+
+    def _pace(self) -> None:
+        """Wait (spinning the context) until the wall clock reaches the sim time.
+
+        A backlog of more than :data:`_MAX_BACKLOG_NS` (the simulation ran slower
+        than real time) is dropped rather than caught up in a burst, as Gazebo does.
+        """
+        wall0, sim0 = self._pace_ref
+        target = wall0 + (self._now_ns - sim0) / self.real_time_factor
+        now = time.perf_counter_ns()
+        if target < now - _MAX_BACKLOG_NS:
+            self._pace_ref = (now, self._now_ns)
+            return
+        while self.context.ok:
+            remaining = (target - time.perf_counter_ns()) * 1e-9
+            if remaining <= 0:
+                return
+            self.context.spin_once(remaining)
+
+    def _check_open(self) -> None:
+        if self._closed:
+            msg = "the simulator is closed; create a new Simulator"
+            raise SimulatorError(msg)
+
+    def close(self) -> None:
+        """Destroy the simulator's nodes and free the renderer (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        for robot in self.robots:
+            for plugin in robot.plugins:
+                plugin.close()
+            if robot.robot_state is not None:
+                robot.robot_state.close()
+        for camera in self._cameras:
+            camera.sensor.close()
+        if self._render_ctx is not None:
+            self._render_ctx.close()
+        if self._owns_node:
+            self._node.destroy_node()
+
+    def __enter__(self) -> Simulator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _publishes(camera: CameraSpec) -> bool:
+    """Whether a camera has a ROS plugin (a sensor without one publishes nothing)."""
+    return bool(camera.image_topic or camera.depth_topic or camera.points_topic)
+
+
+def _is_descendant(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        body = int(model.body_parentid[body])
+        if body == root:
+            return True
+    return False
