@@ -36,6 +36,9 @@ BUILTIN_NODES: Mapping[str, str] = {
     "ego_planner_node": "visnav.planning.ego_planner.nodes:EgoPlannerNode",
     "traj_server": "visnav.planning.ego_planner.nodes:TrajServerNode",
     "grid_map": "visnav.mapping.grid_map_node:GridMapNode",
+    "move_base": "visnav.planning.nodes:NavigatorNode",
+    "costmap_2d": "visnav.mapping.nodes:CostmapNode",
+    "mapper": "visnav.mapping.nodes:MapperNode",
 }
 
 # Node names launch files (and the roslaunch import) may use whose class another issue

@@ -47,34 +47,24 @@ def test_gazebo_tutorial_launch_file_maps_onto_visnav() -> None:
     nodes = by_fqn(desc.nodes)
     assert {n: s.executable for n, s in nodes.items()} == {
         "/gazebo": "sim",
-        "/spawn_urdf": "spawn_model",
-        "/robot_state_publisher": "robot_state_publisher",
         "/camera_optical_tf": "static_transform_publisher",
         "/map_odom_tf": "static_transform_publisher",
         "/camera/image_proc": "image_proc",
         "/camera/depth_to_scan": "depthimage_to_laserscan",
     }
-    # empty_world.launch: the simulator, and /use_sim_time for every node
-    assert nodes["/gazebo"].params == {"world": "empty", "paused": False}
+    # empty_world.launch: the simulator, and /use_sim_time for every node; spawn_model's
+    # robot (robot_description from the xacro command, launch arg passed through) is folded
+    # into the sim node, and the sim publishes the robot state itself
+    sim = nodes["/gazebo"].params
+    assert (sim["world"], sim["paused"]) == ("empty", False)
     assert all(n.use_sim_time is True for n in desc.nodes)
     assert any("gui:=true" in note for note in desc.notes)
-    # robot_description from the xacro command, with the launch arg passed through
-    urdf = nodes["/robot_state_publisher"].params["robot_description"]
+    assert any("spawn_model /spawn_urdf" in note and "folded" in note for note in desc.notes)
+    assert any("robot_state_publisher /robot_state_publisher" in note for note in desc.notes)
+    urdf = sim["robot"]
     assert '<robot name="bot">' in urdf
     assert 'xyz="0.2 0 0.25"' in urdf
-    assert nodes["/robot_state_publisher"].params["publish_frequency"] == 30.0
-    assert "frame_prefix" not in nodes["/robot_state_publisher"].params  # tf_prefix ""
-    spawn = nodes["/spawn_urdf"].params
-    assert spawn["robot_description"] == urdf
-    assert {k: spawn[k] for k in ("format", "model", "x", "y", "z", "Y")} == {
-        "format": "urdf",
-        "model": "bot",
-        "x": 1.5,
-        "y": 0.0,
-        "z": 0.05,
-        "Y": 1.57,
-    }
-    assert spawn["packages"] == [f"my_robot={(DATA / 'my_robot').resolve()}"]
+    assert sim["spawn"] == [1.5, 0.0, 0.05, 1.57]
     optical = nodes["/camera_optical_tf"].params
     assert (optical["yaw"], optical["pitch"], optical["roll"]) == (-1.5708, 0.0, -1.5708)
     assert (optical["frame_id"], optical["child_frame_id"]) == (
@@ -100,11 +90,9 @@ def test_tutorial_args_rviz_and_not_built_nodes() -> None:
     assert nodes["/rviz"].executable == "viz"
     assert nodes["/rviz"].params["fixed_frame"] == "odom"  # read from the .rviz config
     assert nodes["/rviz"].params["config"].endswith("config/view.rviz")
-    assert 'xyz="0.2 0 0.5"' in nodes["/spawn_urdf"].params["robot_description"]
+    assert 'xyz="0.2 0 0.5"' in nodes["/gazebo"].params["robot"]
     assert nodes["/gazebo"].params["paused"] is True
-    with pytest.raises(
-        NodeNotBuiltError, match=r"node 'spawn_model' \(/spawn_urdf\) is not built yet: issue 3"
-    ):
+    with pytest.raises(NodeNotBuiltError, match=r"node 'viz' \(/rviz\) is not built yet: issue 5"):
         Launcher(desc).start()
 
 
@@ -381,12 +369,11 @@ def test_yaml_includes_roslaunch_and_cli_prints_it(
     )
     nodes = by_fqn(load_launch(f).nodes)
     assert "/sim/camera/depth_to_scan" in nodes
-    assert nodes["/sim/spawn_urdf"].params["x"] == 2.0
+    assert nodes["/sim/gazebo"].params["spawn"][0] == 2.0
     assert main(["launch", "--print", str(TUTORIAL)]) == 0
     out = capsys.readouterr().out
     assert "/gazebo  [sim]  process=shared use_sim_time=true" in out
-    assert "/spawn_urdf  [spawn_model]" in out
-    assert "(not built yet: issue 3" in out
+    assert "[spawn_model]" not in out
     assert "remap depth_camera_info -> depth/camera_info" in out
 
 

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.graph_cache import GraphCache
-from visnav.graph.keys import liveliness_key_pattern
+from visnav.graph.keys import LivelinessToken, liveliness_key_pattern
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
@@ -86,6 +86,7 @@ class Context:
         self._watch: Any = None
         self.graph = GraphCache()
         self.graph.add_listener(self._on_graph_change)
+        self.graph.add_token_listener(self._on_token)
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> Context:
@@ -267,6 +268,18 @@ class Context:
 
     def _on_graph_change(self) -> None:
         self.wake()
+
+    def _on_token(self, token: LivelinessToken) -> None:
+        """A latched publisher appeared in another session: its subscribers here fetch its cache."""
+        if token.kind != "MP" or token.durability != "transient_local" or token.topic is None:
+            return
+        if self._zenoh is None or token.zid == self._zenoh.zid:
+            return
+        with self._cond:
+            topic = self._topics.get(token.topic)
+            subs = [s for s in topic.subscriptions if s.wants_history] if topic else []
+        for sub in subs:
+            sub.on_remote_publisher(token.zid)
 
     # ------------------------------------------------------------------ executor
     def _due_timer(self) -> Timer | None:

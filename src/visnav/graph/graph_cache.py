@@ -61,11 +61,16 @@ class GraphCache:
         self._lock = threading.Lock()
         self._tokens: dict[str, LivelinessToken] = {}
         self._listeners: list[Callable[[], None]] = []
+        self._token_listeners: list[Callable[[LivelinessToken], None]] = []
         self.version = 0
 
     def add_listener(self, callback: Callable[[], None]) -> None:
         """Call ``callback`` (from any thread) whenever the graph changes."""
         self._listeners.append(callback)
+
+    def add_token_listener(self, callback: Callable[[LivelinessToken], None]) -> None:
+        """Call ``callback(token)`` (from any thread) for every token that appears."""
+        self._token_listeners.append(callback)
 
     def _changed(self) -> None:
         self.version += 1
@@ -82,6 +87,8 @@ class GraphCache:
             if key in self._tokens:
                 return
             self._tokens[key] = token
+        for cb in list(self._token_listeners):
+            cb(token)
         self._changed()
 
     def delete(self, key: str) -> None:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import inspect
 import logging
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
@@ -182,6 +183,9 @@ class Subscription(Generic[MsgT]):
         self.wants_history = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
         self.wants_info = _takes_two_args(callback)
         self._zsub: Any = None
+        self._zkey: str | None = None
+        self._latest_seq: dict[tuple[str, int], int] = {}
+        self._seq_lock = threading.Lock()
 
     def enqueue(self, msg: MsgT, info: MessageInfo | None = None) -> None:
         """Queue a message (keep-last drops the oldest)."""
@@ -204,8 +208,22 @@ class Subscription(Generic[MsgT]):
         except ValueError as exc:
             self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
             return
-        info = decode_attachment(attachment, time.time_ns()) if self.wants_info else None
-        self.node.context.deliver_remote(self, msg, info)
+        need = self.wants_info or self.wants_history
+        info = decode_attachment(attachment, time.time_ns()) if need else None
+        if self.wants_history and info is not None:
+            # latched samples may arrive twice (live and from a cache query): keep each once
+            source = (info.publisher_zid, info.publisher_entity_id)
+            with self._seq_lock:
+                if info.publication_sequence_number <= self._latest_seq.get(source, 0):
+                    return
+                self._latest_seq[source] = info.publication_sequence_number
+        self.node.context.deliver_remote(self, msg, info if self.wants_info else None)
+
+    def on_remote_publisher(self, zid: str) -> None:
+        """A transient-local publisher appeared in another session: fetch its cache."""
+        z = self.node.context.zenoh
+        if z is not None and self._zkey is not None and self._zsub is not None:
+            z.fetch_latched(self._zkey, self.on_remote, zid)
 
     def destroy(self) -> None:
         """Remove the subscription."""
@@ -442,7 +460,7 @@ class Node:
                 qos.history is HistoryPolicy.KEEP_ALL
                 and qos.reliability is ReliabilityPolicy.RELIABLE
             )
-            pub._zpub = z.publisher(key, cache_depth=cache, block=block)
+            pub._zpub = z.publisher(key, cache_depth=cache, block=block, publisher_id=pub.entity_id)
         self._announce(pub.entity_id, "MP", name, pub.type_name, qos)
         return pub
 
@@ -470,6 +488,7 @@ class Node:
         z = self.context.zenoh
         if z is not None:
             key = topic_key(self.context.domain, name, sub.type_name, _type_hash(sub.type_name))
+            sub._zkey = key
             sub._zsub = z.subscriber(key, sub.on_remote, history=sub.wants_history)
         self._announce(sub.entity_id, "MS", name, sub.type_name, qos)
         return sub

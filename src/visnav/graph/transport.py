@@ -25,11 +25,11 @@ import os
 import re
 import threading
 import zlib
+from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import zenoh
-from zenoh import ext as zext
 from zenoh import shm as zshm
 
 from visnav.graph.errors import TransportError
@@ -40,10 +40,12 @@ __all__ = [
     "SHM_THRESHOLD",
     "ENV_DOMAIN",
     "ENV_LISTEN",
+    "LATCHED_CHUNK",
     "TransportConfig",
     "ZenohPublisher",
     "ZenohTransport",
     "rendezvous_port",
+    "latched_key",
     "resolve_domain",
 ]
 
@@ -143,15 +145,29 @@ class TransportConfig:
                 },
             },
             "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
-            # transient-local topics use zenoh-ext's advanced publisher, which needs timestamps
-            "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
             # large payloads go through shared memory between processes of one machine
             "transport": {"shared_memory": {"enabled": True}},
         }
 
 
+LATCHED_CHUNK = "_latched"
+"""Key chunk under a topic key where transient-local publishers answer for their cache."""
+
+
+def latched_key(key: str, zid: str, publisher_id: int) -> str:
+    """Key of one transient-local publisher's cache queryable."""
+    return f"{key}/{LATCHED_CHUNK}/{zid}/{publisher_id}"
+
+
 class ZenohPublisher:
-    """A Zenoh publisher that knows whether any remote subscriber matches."""
+    """A Zenoh publisher that knows whether any remote subscriber matches.
+
+    Transient-local publishers keep their last ``cache_depth`` samples and answer
+    queries for them on :func:`latched_key` (late-joining subscribers fetch them).
+    visnav does this itself rather than with zenoh-ext's advanced publisher, whose
+    history queries keep one sample per key expression: with two latched publishers
+    of one topic (two static TF broadcasters) a late joiner got only one of them.
+    """
 
     def __init__(
         self,
@@ -161,39 +177,40 @@ class ZenohPublisher:
         cache_depth: int | None,
         block: bool = False,
         shm: Any = None,
+        publisher_id: int = 0,
     ) -> None:
         self._shm = shm
-        self._matching = False
         # As rmw_zenoh: block only for keep-all reliable topics, else drop under congestion
         # (blocking puts of fresh buffers also cost ~8x throughput, measured in bench_graph).
         cc = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
-        self._pub: Any
+        self._pub: Any = session.declare_publisher(
+            key, allowed_destination=zenoh.Locality.REMOTE, congestion_control=cc
+        )
+        self._matching = bool(self._pub.matching_status.matching)
+        self._listener: Any = self._pub.declare_matching_listener(self._on_matching)
+        self._cache: deque[tuple[bytes, bytes | None]] | None = None
+        self._queryable: Any = None
+        self._cache_lock = threading.Lock()
         if cache_depth is not None:
-            self._pub = zext.declare_advanced_publisher(
-                session,
-                key,
-                cache=zext.CacheConfig(max_samples=cache_depth),
-                publisher_detection=True,
-                allowed_destination=zenoh.Locality.REMOTE,
-                congestion_control=cc,
+            self._cache = deque(maxlen=cache_depth)
+            self._qkey = latched_key(key, str(session.zid()), publisher_id)
+            self._queryable = session.declare_queryable(
+                self._qkey, self._on_query, allowed_origin=zenoh.Locality.REMOTE
             )
-            self._matching = True
-            self._listener = None
-        else:
-            self._pub = session.declare_publisher(
-                key, allowed_destination=zenoh.Locality.REMOTE, congestion_control=cc
-            )
-            self._matching = bool(self._pub.matching_status.matching)
-            self._listener = self._pub.declare_matching_listener(self._on_matching)
-        self._always = cache_depth is not None
 
     def _on_matching(self, status: Any) -> None:
         self._matching = bool(status.matching)
 
+    def _on_query(self, query: Any) -> None:
+        with self._cache_lock:
+            samples = list(self._cache or ())
+        for payload, attachment in samples:
+            query.reply(self._qkey, payload, attachment=attachment)
+
     @property
     def has_subscribers(self) -> bool:
-        """True when a remote subscriber matches (always True for cached publishers)."""
-        return self._always or self._matching
+        """True when a remote subscriber matches (always True for latched publishers)."""
+        return self._cache is not None or self._matching
 
     def put(self, payload: bytes | bytearray, attachment: bytes | None = None) -> None:
         """Send one payload (with an optional attachment).
@@ -202,6 +219,9 @@ class ZenohPublisher:
         buffer when a provider is available: peers on this machine then map it instead of
         receiving it through a socket (measured in ``bench/bench_graph.py``).
         """
+        if self._cache is not None:
+            with self._cache_lock:
+                self._cache.append((bytes(payload), attachment))
         if self._shm is not None and len(payload) >= SHM_THRESHOLD:
             try:
                 buf = self._shm.alloc(len(payload), policy=zshm.BlockOn(zshm.GarbageCollect()))
@@ -214,11 +234,12 @@ class ZenohPublisher:
         self._pub.put(payload, attachment=attachment)
 
     def close(self) -> None:
-        """Undeclare the publisher."""
+        """Undeclare the publisher (and its cache queryable)."""
         with contextlib.suppress(Exception):
-            if self._listener is not None:
-                self._listener.undeclare()
+            self._listener.undeclare()
             self._pub.undeclare()
+            if self._queryable is not None:
+                self._queryable.undeclare()
 
 
 class ZenohTransport:
@@ -251,7 +272,12 @@ class ZenohTransport:
         return str(self._session.zid())
 
     def publisher(
-        self, key: str, *, cache_depth: int | None = None, block: bool = False
+        self,
+        key: str,
+        *,
+        cache_depth: int | None = None,
+        block: bool = False,
+        publisher_id: int = 0,
     ) -> ZenohPublisher:
         """Declare a publisher on ``key``.
 
@@ -259,9 +285,15 @@ class ZenohTransport:
             key: the data key expression.
             cache_depth: keep this many samples for late-joining subscribers (transient local).
             block: block under congestion instead of dropping (keep-all reliable topics).
+            publisher_id: the publisher's entity id (names its cache queryable).
         """
         return ZenohPublisher(
-            self._session, key, cache_depth=cache_depth, block=block, shm=self._shm_provider()
+            self._session,
+            key,
+            cache_depth=cache_depth,
+            block=block,
+            shm=self._shm_provider(),
+            publisher_id=publisher_id,
         )
 
     def _shm_provider(self) -> Any:
@@ -290,16 +322,34 @@ class ZenohTransport:
             att = sample.attachment
             callback(sample.payload.to_bytes(), att.to_bytes() if att is not None else None)
 
+        sub = self._session.declare_subscriber(key, on_sample, allowed_origin=zenoh.Locality.REMOTE)
         if history:
-            return zext.declare_advanced_subscriber(
-                self._session,
-                key,
-                on_sample,
-                history=zext.HistoryConfig(detect_late_publishers=True),
-                allowed_origin=zenoh.Locality.REMOTE,
-            )
-        return self._session.declare_subscriber(
-            key, on_sample, allowed_origin=zenoh.Locality.REMOTE
+            self.fetch_latched(key, callback)
+        return sub
+
+    def fetch_latched(
+        self, key: str, callback: Callable[[bytes, bytes | None], None], zid: str | None = None
+    ) -> None:
+        """Ask transient-local publishers of ``key`` (of one session, or all) for their cache.
+
+        Replies arrive on a Zenoh thread through ``callback(payload, attachment)``; the
+        subscription drops samples it already has (by publisher and sequence number).
+        """
+        selector = f"{key}/{LATCHED_CHUNK}/{zid}/*" if zid else f"{key}/{LATCHED_CHUNK}/**"
+
+        def on_reply(reply: Any) -> None:
+            ok = reply.ok
+            if ok is not None:
+                att = ok.attachment
+                callback(ok.payload.to_bytes(), att.to_bytes() if att is not None else None)
+
+        self._session.get(
+            selector,
+            on_reply,
+            target=zenoh.QueryTarget.ALL,
+            consolidation=zenoh.ConsolidationMode.NONE,
+            timeout=5.0,
+            allowed_destination=zenoh.Locality.REMOTE,
         )
 
     def token(self, key: str) -> Any:

@@ -610,6 +610,50 @@ def load_roslaunch_file(
     file.run(root)
 
 
+def _fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
+    """Give spawn_model's robot to the sim node (visnav builds the world and robot together).
+
+    Gazebo spawns robots into a running world; visnav's simulator composes the MuJoCo
+    model once, so a launch file's ``spawn_model`` becomes the ``sim`` node's ``robot``
+    (URDF text), ``spawn`` and ``robot_namespace``. The simulator publishes the robot's
+    state itself, so an imported ``robot_state_publisher`` is then left out.
+    """
+    sims = [n for n in nodes if n.executable == "sim"]
+    spawns = [n for n in nodes if n.executable == "spawn_model"]
+    if len(sims) != 1 or len(spawns) != 1 or "robot_description" not in spawns[0].params:
+        return nodes
+    sim, spawn = sims[0], spawns[0]
+    p = spawn.params
+    params = dict(sim.params)
+    params["robot"] = str(p["robot_description"])
+    params["spawn"] = [
+        float(p.get("x", 0.0)),
+        float(p.get("y", 0.0)),
+        float(p.get("z", 0.0)),
+        float(p.get("Y", 0.0)),
+    ]
+    if p.get("robot_namespace"):
+        params["robot_namespace"] = str(p["robot_namespace"])
+    folded = replace(sim, params=params)
+    notes.append(
+        f"spawn_model {spawn.namespace.rstrip('/')}/{spawn.name} ({spawn.source}) is folded into "
+        f"the sim node {sim.namespace.rstrip('/')}/{sim.name}: visnav builds world and robot "
+        "together"
+    )
+    out: list[NodeSpec] = []
+    for n in nodes:
+        if n is spawn:
+            continue
+        if n.executable == "robot_state_publisher":
+            notes.append(
+                f"robot_state_publisher {n.namespace.rstrip('/')}/{n.name} ({n.source}) is left "
+                "out: the sim publishes the spawned robot's /tf and /tf_static"
+            )
+            continue
+        out.append(folded if n is sim else n)
+    return out
+
+
 def load_roslaunch(
     path: str | os.PathLike[str],
     args: Mapping[str, str],
@@ -663,6 +707,7 @@ def load_roslaunch(
             f"file: {'; '.join(state.issues)}. visnav maps: {MAPPABLE}"
         )
         raise RoslaunchImportError(msg)
+    nodes = _fold_spawns(nodes, state.notes)
     sim_time = state.params.get("/use_sim_time")
     if sim_time is not None:
         use = parse_bool(sim_time, "/use_sim_time", f"{state.params.source('/use_sim_time')}: ")

@@ -21,6 +21,7 @@ from visnav.tf.buffer import Buffer
 
 __all__ = [
     "DYNAMIC_QOS",
+    "STATIC_LISTENER_QOS",
     "STATIC_QOS",
     "StaticTransformBroadcaster",
     "TransformBroadcaster",
@@ -29,6 +30,9 @@ __all__ = [
 
 DYNAMIC_QOS = QoSProfile(depth=100)
 STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""tf2_ros's StaticBroadcasterQoS: each broadcaster keeps its one (whole-set) message."""
+STATIC_LISTENER_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""tf2_ros's StaticListenerQoS: room for the latched messages of many broadcasters."""
 
 
 def _as_list(transform: TransformStamped | Iterable[TransformStamped]) -> list[TransformStamped]:
@@ -91,7 +95,7 @@ class TransformListener:
         *,
         spin_thread: bool = False,
         qos: QoSProfile | int = DYNAMIC_QOS,
-        static_qos: QoSProfile | int = STATIC_QOS,
+        static_qos: QoSProfile | int = STATIC_LISTENER_QOS,
     ) -> None:
         self.buffer = buffer
         self._thread: threading.Thread | None = None

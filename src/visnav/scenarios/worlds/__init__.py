@@ -11,6 +11,7 @@ from __future__ import annotations
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
+from visnav.scenarios.worlds.empty import generate as _empty
 from visnav.scenarios.worlds.forest import generate as _forest
 from visnav.scenarios.worlds.office import generate as _office
 
@@ -20,6 +21,6 @@ if TYPE_CHECKING:
 __all__ = ["GENERATORS"]
 
 GENERATORS: Mapping[str, Callable[..., dict[str, Any]]] = MappingProxyType(
-    {"forest": _forest, "office": _office}
+    {"empty": _empty, "forest": _forest, "office": _office}
 )
 """World name -> generator."""

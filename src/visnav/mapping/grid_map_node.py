@@ -1,0 +1,350 @@
+"""The grid map on the graph: depth + pose (ApproximateTime) or clouds in any frame, via TF.
+
+:class:`GridMapRos` attaches ego-planner's ``GridMap::initMap`` behaviour to a node
+(the planner node owns its map, as upstream); :class:`GridMapNode` is a node that
+only maps. Parameters are declared under a prefix (``grid_map.``), with
+ego-planner's names:
+
+* map and fusion: ``resolution``, ``map_size_x/y/z``, ``map_center_x/y``,
+  ``ground_height``, ``local_update_range_x/y/z``, ``obstacles_inflation``,
+  ``local_map_margin``, ``use_depth_filter``, ``depth_filter_*``,
+  ``k_depth_scaling_factor``, ``skip_pixel``, ``p_hit/p_miss/p_min/p_max/p_occ``,
+  ``min_ray_length``, ``max_ray_length``, ``virtual_ceil_height``,
+  ``virtual_ground_height`` (visnav; below the map disables it),
+  ``visualization_truncate_height``;
+* camera: ``fx``, ``fy``, ``cx``, ``cy`` (<= 0: read from ``camera_info_topic``);
+* inputs: ``pose_type`` (1 ``geometry_msgs/PoseStamped``, 2 ``nav_msgs/Odometry``),
+  ``depth_topic``, ``camera_info_topic``, ``pose_topic``, ``odom_topic``,
+  ``cloud_topic`` (an empty name turns an input off); ``frame_id`` is the map
+  (global) frame, ``local_frame`` the body frame the pose describes when the
+  odometry names no child frame;
+* output: ``vis_period`` (s) of ``grid_map/occupancy`` and
+  ``grid_map/occupancy_inflate`` (``sensor_msgs/PointCloud2`` in the map frame,
+  published only while someone subscribes).
+
+Depth images are paired with poses by the ApproximateTime policy; the camera
+pose is ``T_map_posframe (TF) @ pose @ T_body_camera (TF)``. A cloud is moved
+into the map frame with TF at its stamp and ray cast from its frame's origin; a
+cloud already in the map frame is cast from the latest pose, as upstream does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from visnav import message_filters
+from visnav.errors import VisnavError
+from visnav.graph.node import Node
+from visnav.mapping.grid_map import GridMap, GridMapParams, UpdateResult
+from visnav.msgs.image import image_to_numpy
+from visnav.msgs.pointcloud import cloud_to_xyz, xyz_to_cloud
+from visnav.msgs.time import time_to_ns
+from visnav.msgs.types import CameraInfo, Header, Image, Odometry, PointCloud2, PoseStamped
+from visnav.tf.buffer import Buffer
+from visnav.tf.errors import ExtrapolationException, TransformException
+from visnav.tf.ros import TransformListener
+from visnav.tf.transforms import pose_to_matrix
+
+__all__ = ["GRID_MAP_DEFAULTS", "GridMapNode", "GridMapRos", "POSE_STAMPED", "ODOMETRY"]
+
+POSE_STAMPED = 1
+ODOMETRY = 2
+
+GRID_MAP_DEFAULTS: dict[str, Any] = {
+    "resolution": 0.1,
+    "map_size_x": 40.0,
+    "map_size_y": 40.0,
+    "map_size_z": 3.0,
+    "map_center_x": 0.0,
+    "map_center_y": 0.0,
+    "ground_height": -0.01,
+    "local_update_range_x": 5.5,
+    "local_update_range_y": 5.5,
+    "local_update_range_z": 4.5,
+    "obstacles_inflation": 0.099,
+    "local_map_margin": 500,
+    "use_depth_filter": True,
+    "depth_filter_tolerance": 0.15,
+    "depth_filter_maxdist": 5.0,
+    "depth_filter_mindist": 0.2,
+    "depth_filter_margin": 2,
+    "k_depth_scaling_factor": 1000.0,
+    "skip_pixel": 2,
+    "p_hit": 0.65,
+    "p_miss": 0.35,
+    "p_min": 0.12,
+    "p_max": 0.90,
+    "p_occ": 0.80,
+    "min_ray_length": 0.1,
+    "max_ray_length": 4.5,
+    "virtual_ceil_height": 2.5,
+    "virtual_ground_height": -0.01,
+    "visualization_truncate_height": 2.4,
+    "fx": -1.0,
+    "fy": -1.0,
+    "cx": -1.0,
+    "cy": -1.0,
+    "pose_type": ODOMETRY,
+    "frame_id": "world",
+    "local_frame": "base_link",
+    "depth_topic": "depth_camera/depth/image_raw",
+    "camera_info_topic": "depth_camera/depth/camera_info",
+    "pose_topic": "camera_pose",
+    "odom_topic": "odom",
+    "cloud_topic": "",
+    "vis_period": 0.05,
+}
+
+
+def params_from_values(values: Mapping[str, Any]) -> GridMapParams:
+    """:class:`GridMapParams` from ego-planner-named values (see :data:`GRID_MAP_DEFAULTS`)."""
+    v = {**GRID_MAP_DEFAULTS, **values}
+    return GridMapParams(
+        resolution=float(v["resolution"]),
+        map_size=(float(v["map_size_x"]), float(v["map_size_y"]), float(v["map_size_z"])),
+        map_center=(float(v["map_center_x"]), float(v["map_center_y"])),
+        ground_height=float(v["ground_height"]),
+        local_update_range=(
+            float(v["local_update_range_x"]),
+            float(v["local_update_range_y"]),
+            float(v["local_update_range_z"]),
+        ),
+        obstacles_inflation=float(v["obstacles_inflation"]),
+        local_map_margin=int(v["local_map_margin"]),
+        use_depth_filter=bool(v["use_depth_filter"]),
+        depth_filter_tolerance=float(v["depth_filter_tolerance"]),
+        depth_filter_maxdist=float(v["depth_filter_maxdist"]),
+        depth_filter_mindist=float(v["depth_filter_mindist"]),
+        depth_filter_margin=int(v["depth_filter_margin"]),
+        k_depth_scaling_factor=float(v["k_depth_scaling_factor"]),
+        skip_pixel=int(v["skip_pixel"]),
+        p_hit=float(v["p_hit"]),
+        p_miss=float(v["p_miss"]),
+        p_min=float(v["p_min"]),
+        p_max=float(v["p_max"]),
+        p_occ=float(v["p_occ"]),
+        min_ray_length=float(v["min_ray_length"]),
+        max_ray_length=float(v["max_ray_length"]),
+        virtual_ceil_height=float(v["virtual_ceil_height"]),
+        virtual_ground_height=float(v["virtual_ground_height"]),
+        visualization_truncate_height=float(v["visualization_truncate_height"]),
+    )
+
+
+class GridMapRos:
+    """Feeds a :class:`~visnav.mapping.grid_map.GridMap` from a node's topics.
+
+    Args:
+        node: The node that owns the subscriptions, publishers and timer.
+        prefix: Parameter prefix (``grid_map``).
+        defaults: Overrides of :data:`GRID_MAP_DEFAULTS` (before parameter overrides).
+        tf_buffer: A TF buffer to share; None creates one with its own listener on ``node``.
+
+    Attributes:
+        map: The grid map.
+        updates: Successful updates so far.
+        dropped: Inputs dropped (reasons are logged once each).
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        *,
+        prefix: str = "grid_map",
+        defaults: Mapping[str, Any] | None = None,
+        tf_buffer: Buffer | None = None,
+    ) -> None:
+        self.node = node
+        base = {**GRID_MAP_DEFAULTS, **(defaults or {})}
+        values = {
+            name: node.declare_parameter(f"{prefix}.{name}", value).value
+            for name, value in base.items()
+        }
+        self.values = values
+        self.map = GridMap(params_from_values(values))
+        self.frame_id = str(values["frame_id"])
+        self.local_frame = str(values["local_frame"])
+        if tf_buffer is None:
+            tf_buffer = Buffer()
+            self._listener: TransformListener | None = TransformListener(tf_buffer, node)
+        else:
+            self._listener = None
+        self.tf = tf_buffer
+        self.updates = 0
+        self.dropped = 0
+        self.last_update: UpdateResult | None = None
+        self._reported: set[str] = set()
+        self._info: CameraInfo | None = None
+        self._published_at = -1
+        self._last_sensor: np.ndarray | None = None
+        pose_type = int(values["pose_type"])
+        if pose_type not in (POSE_STAMPED, ODOMETRY):
+            msg = f"{prefix}.pose_type is {pose_type}: expected 1 (PoseStamped) or 2 (Odometry)"
+            raise VisnavError(msg)
+        pose_cls: type[Any] = Odometry if pose_type == ODOMETRY else PoseStamped
+        pose_topic = str(values["odom_topic"] if pose_type == ODOMETRY else values["pose_topic"])
+        if values["depth_topic"] and pose_topic:
+            depth = message_filters.Subscriber(node, Image, str(values["depth_topic"]), 50)
+            pose = message_filters.Subscriber(node, pose_cls, pose_topic, 100)
+            self._sync = message_filters.ApproximateTime([depth, pose], 100)
+            self._sync.register_callback(self._on_depth)
+            if values["camera_info_topic"]:
+                node.create_subscription(
+                    CameraInfo, str(values["camera_info_topic"]), self._on_info, 5
+                )
+        if pose_topic:
+            node.create_subscription(pose_cls, pose_topic, self._on_pose, 10)
+        if values["cloud_topic"]:
+            node.create_subscription(PointCloud2, str(values["cloud_topic"]), self._on_cloud, 10)
+        self._occ_pub = node.create_publisher(PointCloud2, f"{prefix}/occupancy", 10)
+        self._inf_pub = node.create_publisher(PointCloud2, f"{prefix}/occupancy_inflate", 10)
+        period = float(values["vis_period"])
+        if period > 0:
+            node.create_timer(period, self.publish)
+
+    # ------------------------------------------------------------------ helpers
+    def _fail(self, text: str) -> None:
+        self.dropped += 1
+        if text not in self._reported:
+            self._reported.add(text)
+            self.node.get_logger().warning(f"grid map: {text}")
+
+    def _lookup(self, target: str, source: str, stamp_ns: int) -> np.ndarray | None:
+        if not source or source == target:
+            return np.eye(4)
+        try:
+            return self.tf.lookup_transform_matrix(target, source, stamp_ns)
+        except ExtrapolationException:
+            try:
+                return self.tf.lookup_transform_matrix(target, source, 0)
+            except TransformException as exc:
+                self._fail(f"no transform {target} <- {source}: {exc}")
+        except TransformException as exc:
+            self._fail(f"no transform {target} <- {source}: {exc}")
+        return None
+
+    def _body_pose(self, msg: Any) -> tuple[np.ndarray, str] | None:
+        """``(T_map_body, body frame)`` of an Odometry or PoseStamped message."""
+        pose = msg.pose.pose if isinstance(msg, Odometry) else msg.pose
+        try:
+            t_frame_body = pose_to_matrix(pose)
+        except (VisnavError, ValueError) as exc:
+            self._fail(f"invalid pose: {exc}")
+            return None
+        t_map_frame = self._lookup(self.frame_id, msg.header.frame_id, time_to_ns(msg.header.stamp))
+        if t_map_frame is None:
+            return None
+        child = msg.child_frame_id if isinstance(msg, Odometry) and msg.child_frame_id else ""
+        return t_map_frame @ t_frame_body, child or self.local_frame
+
+    def _intrinsics(self, image: Image) -> tuple[float, float, float, float] | None:
+        v = self.values
+        if min(float(v["fx"]), float(v["fy"])) > 0:
+            return float(v["fx"]), float(v["fy"]), float(v["cx"]), float(v["cy"])
+        info = self._info
+        if info is None:
+            self._fail(
+                f"no camera_info on {self.node.resolve_topic_name(str(v['camera_info_topic']))} "
+                "and no grid_map.fx/fy/cx/cy parameters; waiting"
+            )
+            return None
+        if info.width and (info.width != image.width or info.height != image.height):
+            self._fail(
+                f"camera_info is {info.width}x{info.height} but the depth image is "
+                f"{image.width}x{image.height}; set grid_map.fx/fy/cx/cy"
+            )
+            return None
+        k = info.k
+        return float(k[0]), float(k[4]), float(k[2]), float(k[5])
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_info(self, msg: CameraInfo) -> None:
+        self._info = msg
+
+    def _on_pose(self, msg: Any) -> None:
+        body = self._body_pose(msg)
+        if body is not None:
+            self._last_sensor = body[0][:3, 3].copy()
+
+    def _on_depth(self, image: Image, pose_msg: Any) -> None:
+        intrinsics = self._intrinsics(image)
+        body = self._body_pose(pose_msg)
+        if intrinsics is None or body is None:
+            return
+        t_map_body, body_frame = body
+        t_body_cam = self._lookup(body_frame, image.header.frame_id, time_to_ns(image.header.stamp))
+        if t_body_cam is None:
+            return
+        try:
+            depth = image_to_numpy(image)
+            result = self.map.update_from_depth(
+                depth, intrinsics=intrinsics, T_world_camera=t_map_body @ t_body_cam
+            )
+        except (VisnavError, ValueError) as exc:
+            self._fail(f"dropped a depth image: {exc}")
+            return
+        self._done(result)
+
+    def _on_cloud(self, msg: PointCloud2) -> None:
+        frame = msg.header.frame_id
+        try:
+            pts = cloud_to_xyz(msg).astype(np.float64)
+        except (VisnavError, ValueError) as exc:
+            self._fail(f"dropped a cloud: {exc}")
+            return
+        if not frame or frame == self.frame_id:
+            origin = self._last_sensor
+            if origin is None:
+                self._fail("a map-frame cloud arrived before any pose; waiting for a pose")
+                return
+        else:
+            t_map_cloud = self._lookup(self.frame_id, frame, time_to_ns(msg.header.stamp))
+            if t_map_cloud is None:
+                return
+            pts = pts @ t_map_cloud[:3, :3].T + t_map_cloud[:3, 3]
+            origin = t_map_cloud[:3, 3].copy()
+        self._done(self.map.update_from_points(pts, sensor_origin=origin))
+
+    def _done(self, result: UpdateResult | None) -> None:
+        if result is None:
+            self._fail(
+                "the sensor is outside the map; update skipped (enlarge grid_map.map_size_*)"
+            )
+            return
+        self.updates += 1
+        self.last_update = result
+
+    def publish(self) -> None:
+        """Publish occupied and inflated cells to existing subscribers, when the map changed."""
+        if self.map.update_count == self._published_at:
+            return
+        header = Header(stamp=self.node.get_clock().now().to_msg(), frame_id=self.frame_id)
+        margin = int(self.values["local_map_margin"])
+        trunc = float(self.values["visualization_truncate_height"])
+        sent = False
+        if self._occ_pub.get_subscription_count() > 0:
+            cells = self.map.occupied_cells(margin=margin // 2, truncate_height=trunc)
+            self._occ_pub.publish(xyz_to_cloud(cells, header=header))
+            sent = True
+        if self._inf_pub.get_subscription_count() > 0:
+            cells = self.map.occupied_cells(inflated=True, margin=margin, truncate_height=trunc)
+            self._inf_pub.publish(xyz_to_cloud(cells, header=header))
+            sent = True
+        if sent:
+            self._published_at = self.map.update_count
+
+
+class GridMapNode(Node):
+    """A node that only maps (``grid_map`` parameters and topics as :class:`GridMapRos`).
+
+    Args:
+        name: Node name (default ``grid_map``).
+        **node_kwargs: Passed to :class:`~visnav.graph.Node` (context, namespace, ...).
+    """
+
+    def __init__(self, name: str = "grid_map", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        self.grid = GridMapRos(self)

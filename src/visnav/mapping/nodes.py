@@ -1,0 +1,133 @@
+"""Graph nodes of the mapping algorithms.
+
+* :class:`CostmapNode` (costmap_2d's ``costmap_2d_node``): one :class:`CostmapROS`
+  named ``costmap``; parameters ``costmap.*`` (see :mod:`visnav.mapping.costmap_ros`),
+  publishes ``~/costmap/costmap``.
+* :class:`MapperNode` (a gmapping-shaped log-odds mapper with known poses): subscribes
+  ``scan`` (LaserScan), looks the scan frame up in ``map_frame`` through TF at the scan
+  stamp (the pose may come from odometry, ground truth or SLAM), and publishes ``map``
+  (``nav_msgs/OccupancyGrid``, reliable, transient local) and ``map_metadata`` every
+  ``map_update_interval`` seconds. Parameters: ``map_frame`` ("map"), ``resolution``
+  (0.05), ``width`` / ``height`` (20 m), ``origin_x`` / ``origin_y`` (-10), ``grow``
+  (true), ``grow_margin`` (2.0), ``prob_hit`` (0.7), ``prob_miss`` (0.4), ``clamp_min``
+  (0.12), ``clamp_max`` (0.97), ``occupied_thresh`` (0.65), ``free_thresh`` (0.196),
+  ``free_on_max_range`` (true), ``max_free_range`` (5.0), ``trinary`` (true),
+  ``map_update_interval`` (1.0 s; gmapping's 5.0 is slow for exploring).
+
+A scan whose transform is not available yet waits (up to 5 scans) and is retried
+with the next scan; one whose transform cannot be found is dropped with one log line
+per distinct reason.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from visnav.graph.node import Node
+from visnav.graph.qos import qos_profile_sensor_data
+from visnav.mapping.costmap_ros import MAP_QOS, CostmapROS
+from visnav.mapping.occupancy import OccupancyMapper
+from visnav.msgs.time import time_to_ns
+from visnav.msgs.types import LaserScan, MapMetaData, OccupancyGrid
+from visnav.tf.buffer import Buffer
+from visnav.tf.errors import ExtrapolationException, TransformException
+from visnav.tf.ros import TransformListener
+
+__all__ = ["CostmapNode", "MapperNode"]
+
+
+class CostmapNode(Node):
+    """costmap_2d_node: a standalone costmap.
+
+    Args:
+        name: node name (default ``costmap_2d``).
+        **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
+    """
+
+    def __init__(self, name: str = "costmap_2d", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        self.tf_buffer = Buffer()
+        self.tf_listener = TransformListener(self.tf_buffer, self)
+        self.costmap = CostmapROS(self, "costmap", self.tf_buffer)
+
+
+class MapperNode(Node):
+    """Occupancy grid mapping from scans with poses from TF.
+
+    Args:
+        name: node name (default ``mapper``).
+        **node_kwargs: passed to :class:`~visnav.graph.Node`.
+    """
+
+    def __init__(self, name: str = "mapper", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        d = self.declare_parameter
+        self.map_frame = str(d("map_frame", "map").value)
+        self.trinary = bool(d("trinary", value=True).value)
+        self.mapper = OccupancyMapper(
+            resolution=float(d("resolution", 0.05).value),
+            width=float(d("width", 20.0).value),
+            height=float(d("height", 20.0).value),
+            origin_x=float(d("origin_x", -10.0).value),
+            origin_y=float(d("origin_y", -10.0).value),
+            grow=bool(d("grow", value=True).value),
+            grow_margin=float(d("grow_margin", 2.0).value),
+            prob_hit=float(d("prob_hit", 0.7).value),
+            prob_miss=float(d("prob_miss", 0.4).value),
+            clamp_min=float(d("clamp_min", 0.12).value),
+            clamp_max=float(d("clamp_max", 0.97).value),
+            occupied_thresh=float(d("occupied_thresh", 0.65).value),
+            free_thresh=float(d("free_thresh", 0.196).value),
+            free_on_max_range=bool(d("free_on_max_range", value=True).value),
+            max_free_range=float(d("max_free_range", 5.0).value),
+        )
+        interval = float(d("map_update_interval", 1.0).value)
+        self.tf_buffer = Buffer()
+        self.tf_listener = TransformListener(self.tf_buffer, self)
+        self._map_pub = self.create_publisher(OccupancyGrid, "map", MAP_QOS)
+        self._meta_pub = self.create_publisher(MapMetaData, "map_metadata", MAP_QOS)
+        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data)
+        self.create_timer(interval, self.publish_map)
+        self._pending: list[LaserScan] = []
+        self._reported: set[str] = set()
+        self.dropped = 0
+
+    def _integrate(self, msg: LaserScan) -> bool:
+        stamp = time_to_ns(msg.header.stamp)
+        try:
+            T = self.tf_buffer.lookup_transform_matrix(self.map_frame, msg.header.frame_id, stamp)  # noqa: N806
+        except ExtrapolationException as exc:
+            if exc.requested_ns > exc.latest_ns:
+                return False
+            return self._drop(msg, exc)
+        except TransformException as exc:
+            return self._drop(msg, exc)
+        self.mapper.integrate_scan(msg, T)
+        return True
+
+    def _drop(self, msg: LaserScan, exc: TransformException) -> bool:
+        self.dropped += 1
+        frame = msg.header.frame_id
+        text = f"dropped a scan: no transform from '{frame}' to '{self.map_frame}': {exc}"
+        if text not in self._reported:
+            self._reported.add(text)
+            self.get_logger().warning(text)
+        return True
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        self._pending.append(msg)
+        while self._pending and self._integrate(self._pending[0]):
+            self._pending.pop(0)
+        if len(self._pending) > 5:
+            self._pending.pop(0)
+            self.dropped += 1
+
+    def publish_map(self) -> None:
+        """Publish ``map`` and ``map_metadata`` (after at least one scan)."""
+        if self.mapper.scans == 0:
+            return
+        grid = self.mapper.to_occupancy_grid(
+            self.map_frame, self.get_clock().now_ns(), trinary=self.trinary
+        )
+        self._map_pub.publish(grid)
+        self._meta_pub.publish(grid.info)
