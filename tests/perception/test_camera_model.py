@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from visnav.errors import VisnavError
@@ -195,6 +195,11 @@ def test_property_plumb_bob_round_trip(make_info, k1, k2, p1, p2, fx, u, v):
     model = PinholeCameraModel.from_camera_info(make_info(fx=fx, d=[k1, k2, p1, p2, 0.0]))
     if not model.has_distortion:
         return
+    # OpenCV's (and image_geometry's) undistortion is a fixed-point iteration: it
+    # converges where the radial term is a mild correction, not at the strongly
+    # distorted image edges of a short focal length (e.g. k1 -0.25, fx 300, 200 px out).
+    r2 = ((u - model.cx) / fx) ** 2 + ((v - model.cy) / fx) ** 2
+    assume(abs(k1 * r2 + k2 * r2 * r2) < 0.1)
     rect = model.rectify_point((u, v), iterations=100)
     np.testing.assert_allclose(model.unrectify_point(rect), [u, v], atol=1e-6)
 

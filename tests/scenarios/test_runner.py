@@ -80,3 +80,12 @@ def test_drone_flies_through_the_forest(tmp_path: Path) -> None:
     assert summary["mean_speed_mps"] >= 1.5
     assert summary["min_clearance_m"] > 0.0
     assert summary["planning_time_ms"]["median"] <= 5.0
+
+
+@pytest.mark.slow
+def test_car_reaches_its_goals_in_the_office(tmp_path: Path) -> None:
+    with Context(transport="local") as ctx:
+        summary = run_scenario("car", seed=0, out=tmp_path / "c", context=ctx, progress=None)
+    assert summary["goals_reached"] == summary["goals_total"] == 4
+    assert summary["collisions"] == 0
+    assert summary["path_ratio"] <= 1.3

@@ -186,7 +186,8 @@ class ZenohPublisher:
         self._pub: Any = session.declare_publisher(
             key, allowed_destination=zenoh.Locality.REMOTE, congestion_control=cc
         )
-        self._matching = bool(self._pub.matching_status.matching)
+        status: Any = self._pub.matching_status
+        self._matching = bool(getattr(status, "matching", status))
         self._listener: Any = self._pub.declare_matching_listener(self._on_matching)
         self._cache: deque[tuple[bytes, bytes | None]] | None = None
         self._queryable: Any = None

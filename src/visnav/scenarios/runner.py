@@ -91,7 +91,7 @@ def _build_drone(ctx: Context, sim: Simulator, seed: int) -> list[ScenarioTask]:
 
 
 SCENARIOS: dict[str, ScenarioDef] = {
-    "car": ScenarioDef("car", "office", "car", 60.0, _build_car),
+    "car": ScenarioDef("car", "office", "car", 240.0, _build_car),
     "drone": ScenarioDef("drone", "forest", "quadrotor", 60.0, _build_drone, namespace="/drone"),
 }
 
@@ -346,6 +346,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         "collisions",
         "path_length_m",
         "shortest_path_m",
+        "path_ratio",
         "min_clearance_m",
         "mean_speed_mps",
         "planning_time_ms",
