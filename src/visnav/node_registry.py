@@ -39,6 +39,7 @@ BUILTIN_NODES: Mapping[str, str] = {
     "move_base": "visnav.planning.nodes:NavigatorNode",
     "costmap_2d": "visnav.mapping.nodes:CostmapNode",
     "mapper": "visnav.mapping.nodes:MapperNode",
+    "viz": "visnav.viz.node:ViewerNode",
 }
 
 # Node names launch files (and the roslaunch import) may use whose class another issue
@@ -48,7 +49,6 @@ PENDING_NODES: Mapping[str, str] = {
         "issue 3 (spawning into a running simulator: give the robot to the `sim` node's "
         "robots instead)"
     ),
-    "viz": "issue 5 item 2 (a viewer node; run `visnav view` next to the launch meanwhile)",
 }
 
 
