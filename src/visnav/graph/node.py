@@ -204,7 +204,9 @@ class Subscription(Generic[MsgT]):
     def on_remote(self, payload: bytes, attachment: bytes | None) -> None:
         """Deserialize a remote sample and queue it (runs on a transport thread)."""
         try:
-            msg = deserialize(payload, self.type_name)
+            # a memoryview: rosbags slices off the CDR header, and slicing bytes would copy
+            # (and page-fault) the whole payload once more
+            msg = deserialize(memoryview(payload), self.type_name)
         except ValueError as exc:
             self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
             return
