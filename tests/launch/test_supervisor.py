@@ -199,12 +199,13 @@ def test_nodes_not_built_yet_fail_before_anything_starts(tmp_path: Path) -> None
         """
         launch:
           - node: {exec: image_proc, process: own}
-          - node: {exec: viz}
+          - node: {exec: spawn_model}
         """,
     )
     launcher = Launcher(load_launch(f))
     with pytest.raises(
-        NodeNotBuiltError, match=r"p.yaml:3: node 'viz' \(/viz\) is not built yet: issue 5"
+        NodeNotBuiltError,
+        match=r"p.yaml:3: node 'spawn_model' \(/spawn_model\) is not built yet: issue 3",
     ):
         launcher.run()
     assert launcher.events == []
