@@ -20,6 +20,7 @@ one executor must be given the same :class:`~visnav.graph.Context`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import inspect
 import logging
 import threading
@@ -58,15 +59,11 @@ __all__ = ["Node", "NodeLogger", "Publisher", "Subscription", "Timer"]
 MsgT = TypeVar("MsgT")
 
 _CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-_type_hashes: dict[str, str] = {}
 
 
+@functools.cache
 def _type_hash(type_name: str) -> str:
-    h = _type_hashes.get(type_name)
-    if h is None:
-        h = typestore().hash_rihs01(type_name)
-        _type_hashes[type_name] = h
-    return h
+    return str(typestore().hash_rihs01(type_name))
 
 
 class NodeLogger:

@@ -32,6 +32,7 @@ from visnav.msgs.types import Header, Odometry, Quaternion, Transform, Transform
 from visnav.perception.nodes import DepthImageToLaserScanNode
 from visnav.planning import GlobalPlanner, GlobalPlannerParams, GoalStatus
 from visnav.planning.nodes import NavigatorNode
+from visnav.scenarios.contacts import ContactCounter
 from visnav.sim.simulator import Simulator
 from visnav.sim.world import true_occupancy_grid
 from visnav.tf.ros import StaticTransformBroadcaster
@@ -74,11 +75,11 @@ class CarTask:
         clearance = ndimage.distance_transform_edt(~grid) * 0.05
         self._truth.data[:] = np.where(clearance <= ROBOT_RADIUS_M, LETHAL_OBSTACLE, 0)
         self._shortest = GlobalPlanner(GlobalPlannerParams(cost_factor=0.0))
-        self._robot = {
+        robot = {
             mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, b)
             for b in sim.robot().handles.bodies.values()
         }
-        self._plane = mujoco.mjtGeom.mjGEOM_PLANE
+        self._contacts = ContactCounter(sim, robot, ignore_planes=True, gap_s=CONTACT_GAP_S)
         bounds = world.metadata["bounds"]
         sim_time = {"use_sim_time": True}
         DepthImageToLaserScanNode(
@@ -128,31 +129,14 @@ class CarTask:
         self._handle: Any = None
         self._starts: list[int] = []
         self._results: list[tuple[bool, float, float, float]] = []  # ok, travelled, best, time
-        self.collisions = 0
-        self._last_touch = -math.inf
         self._node.create_timer(0.005, self._tick)
 
     def _on_truth(self, msg: Odometry) -> None:
         p = msg.pose.pose.position
         self._truth_xy.append((p.x, p.y))
 
-    def _contact(self) -> bool:
-        sim = self._sim
-        for c in sim.data.contact[: sim.data.ncon]:
-            b1, b2 = sim.model.geom_bodyid[c.geom1], sim.model.geom_bodyid[c.geom2]
-            if (b1 in self._robot) == (b2 in self._robot):
-                continue
-            other = c.geom2 if b1 in self._robot else c.geom1
-            if sim.model.geom_type[other] != self._plane:
-                return True
-        return False
-
     def _tick(self) -> None:
-        if self._contact():
-            now = self._sim.sim_time_s
-            if now - self._last_touch > CONTACT_GAP_S:
-                self.collisions += 1
-            self._last_touch = now
+        self._contacts.update(self._sim.sim_time_s)
         if self._sim.sim_time_s < 0.5 or not self._truth_xy:
             return
         if self._handle is not None and not self._handle.done:
@@ -193,7 +177,7 @@ class CarTask:
         return {
             "goals_total": len(self.goals),
             "goals_reached": len(reached),
-            "collisions": self.collisions,
+            "collisions": self._contacts.events,
             "path_length_m": round(travelled, 3),
             "shortest_path_m": round(shortest, 3),
             "path_ratio": round(travelled / shortest, 4) if shortest > 0 else None,

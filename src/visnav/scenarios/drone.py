@@ -30,6 +30,7 @@ from visnav.graph.node import Node
 from visnav.msgs.construct import make
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Header, Odometry, PoseStamped
+from visnav.scenarios.contacts import ContactCounter
 from visnav.sim.simulator import Simulator
 from visnav.sim.world_geometry import obstacle_distance
 
@@ -65,9 +66,8 @@ class DroneTask:
         self._hold.publish(_pose(self._start[0], self._start[1], TAKEOFF_HEIGHT_M, 0))
         model = sim.model
         root = model.body(sim.robot().handles.root_body).id
-        self._drone = {b for b in range(model.nbody) if model.body_rootid[b] == root}
-        self.collisions = 0
-        self._touching = False
+        drone = {b for b in range(model.nbody) if model.body_rootid[b] == root}
+        self._contacts = ContactCounter(sim, drone, ignore_planes=False)
         self._planner: Any = None
         self._goal_sent_ns: int | None = None
         self._flight_start_index = 0
@@ -80,13 +80,7 @@ class DroneTask:
     def _tick(self) -> None:
         sim = self._sim
         if self._goal_sent_ns is not None:  # resting on the ground before take-off is no collision
-            touching = False
-            for c in sim.data.contact[: sim.data.ncon]:
-                b1, b2 = sim.model.geom_bodyid[c.geom1], sim.model.geom_bodyid[c.geom2]
-                touching = touching or (b1 in self._drone) != (b2 in self._drone)
-            if touching and not self._touching:
-                self.collisions += 1  # count contact events, not samples
-            self._touching = touching
+            self._contacts.update(sim.sim_time_s)
         t = sim.sim_time_s
         if self._planner is None and t >= START_PLANNER_S:
             from visnav.planning.ego_planner.nodes import (  # noqa: PLC0415 - numba warm-up
@@ -132,7 +126,7 @@ class DroneTask:
         return {
             "goals_total": 1,
             "goals_reached": int(reached),
-            "collisions": self.collisions,
+            "collisions": self._contacts.events,
             "min_clearance_m": round(clearance, 4) if clearance is not None else None,
             "mean_speed_mps": round(length / flight_s, 4) if flight_s > 0 else 0.0,
             "path_length_m": round(length, 3),
