@@ -215,8 +215,12 @@ class Context:
                 self._gc(topic)
 
     def remove_subscription(self, sub: Subscription[Any]) -> None:
-        """Called by :class:`Node`: detach a subscription."""
+        """Called by :class:`Node`: detach a subscription and drop its pending messages.
+
+        Dropping them also releases remote samples' buffers (a sender's shared memory).
+        """
         with self._cond:
+            sub.queue.clear()
             topic = self._topics.get(sub.topic_name)
             if topic is not None and sub in topic.subscriptions:
                 topic.subscriptions.remove(sub)
@@ -254,10 +258,12 @@ class Context:
                 pub.history.append(msg)
             self._cond.notify()
 
-    def deliver_remote(self, sub: Subscription[Any], msg: Any, info: MessageInfo | None) -> None:
-        """Hand a message that arrived from another process to ``sub`` (any thread)."""
+    def deliver_remote(
+        self, sub: Subscription[Any], payload: Any, info: MessageInfo | None
+    ) -> None:
+        """Hand a sample (CDR payload) that arrived from another process to ``sub`` (any thread)."""
         with self._cond:
-            sub.enqueue(msg, info)
+            sub.enqueue_remote(payload, info)
             self._ready.append(sub)
             self._cond.notify()
 

@@ -29,6 +29,8 @@ from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
 
+from zenoh import ZBytes
+
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.context import Context
 from visnav.graph.errors import GraphError, TopicTypeConflictError
@@ -54,9 +56,11 @@ from visnav.msgs.serde import CdrSerializer, deserialize, msg_type_name, typesto
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import Clock as ClockMsg
 
-__all__ = ["Node", "NodeLogger", "Publisher", "Subscription", "Timer"]
+__all__ = ["Node", "NodeLogger", "Publisher", "RemotePayload", "Subscription", "Timer"]
 
 MsgT = TypeVar("MsgT")
+RemotePayload = ZBytes | bytes
+"""A remote sample's CDR bytes as the transport hands them over (copied out when taken)."""
 
 _CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
@@ -176,7 +180,8 @@ class Subscription(Generic[MsgT]):
         self.callback = callback
         self.qos = qos
         self.entity_id = node.context.next_id()
-        self.queue: deque[tuple[MsgT, MessageInfo | None]] = deque(maxlen=qos.queue_limit)
+        # (message or undecoded remote payload, info, whether it is a remote payload)
+        self.queue: deque[tuple[Any, MessageInfo | None, bool]] = deque(maxlen=qos.queue_limit)
         self.wants_history = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
         self.wants_info = _takes_two_args(callback)
         self._zsub: Any = None
@@ -186,29 +191,56 @@ class Subscription(Generic[MsgT]):
 
     def enqueue(self, msg: MsgT, info: MessageInfo | None = None) -> None:
         """Queue a message (keep-last drops the oldest)."""
-        self.queue.append((msg, info))
+        self.queue.append((msg, info, False))
+
+    def enqueue_remote(self, payload: RemotePayload, info: MessageInfo | None = None) -> None:
+        """Queue an undecoded remote payload (keep-last drops the oldest, never decoded)."""
+        self.queue.append((payload, info, True))
 
     def take_call(self) -> Callable[[], None] | None:
-        """Pop the oldest queued message as a ready-to-run callback, or None."""
+        """Pop the oldest queued message as a ready-to-run callback, or None.
+
+        A remote payload is copied out of the transport and deserialized when the
+        callback runs (outside the context's lock), so samples that keep-last drops
+        cost nothing and each callback gets its own message.
+        """
         if not self.queue:
             return None
-        msg, info = self.queue.popleft()
+        item, info, remote = self.queue.popleft()
         cb: Any = self.callback
+        if remote:
+            return functools.partial(self._run_remote, item, info)
         if self.wants_info:
-            return lambda: cb(msg, info)
-        return lambda: cb(msg)
+            return lambda: cb(item, info)
+        return lambda: cb(item)
 
-    def on_remote(self, payload: bytes, attachment: bytes | None) -> None:
-        """Deserialize a remote sample and queue it (runs on a transport thread)."""
+    def _run_remote(self, payload: RemotePayload, info: MessageInfo | None) -> None:
+        data = _as_bytes(payload)
         try:
             # a memoryview: rosbags slices off the CDR header, and slicing bytes would copy
-            # (and page-fault) the whole payload once more
-            msg = deserialize(memoryview(payload), self.type_name)
+            # (and page-fault) the whole payload once more. The message's arrays are views
+            # on ``data``, a fresh buffer that only this message holds.
+            msg = deserialize(memoryview(data), self.type_name)
         except ValueError as exc:
             self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
             return
-        need = self.wants_info or self.wants_history
-        info = decode_attachment(attachment, time.time_ns()) if need else None
+        cb: Any = self.callback
+        if self.wants_info:
+            cb(msg, info)
+        else:
+            cb(msg)
+
+    def on_remote(self, payload: RemotePayload, attachment: RemotePayload | None) -> None:
+        """Queue a remote sample for the executor (runs on a transport thread).
+
+        Only the small attachment is read here (for :class:`MessageInfo` and latched
+        de-duplication); the payload stays in the transport's buffer until taken.
+        """
+        info = None
+        if self.wants_info or self.wants_history:
+            received_ns = time.time_ns()
+            att = None if attachment is None else _as_bytes(attachment)
+            info = decode_attachment(att, received_ns)
         if self.wants_history and info is not None:
             # latched samples may arrive twice (live and from a cache query): keep each once
             source = (info.publisher_zid, info.publisher_entity_id)
@@ -216,7 +248,7 @@ class Subscription(Generic[MsgT]):
                 if info.publication_sequence_number <= self._latest_seq.get(source, 0):
                     return
                 self._latest_seq[source] = info.publication_sequence_number
-        self.node.context.deliver_remote(self, msg, info if self.wants_info else None)
+        self.node.context.deliver_remote(self, payload, info if self.wants_info else None)
 
     def on_remote_publisher(self, zid: str) -> None:
         """A transient-local publisher appeared in another session: fetch its cache."""
@@ -296,6 +328,11 @@ class Timer:
     def destroy(self) -> None:
         """Remove the timer."""
         self.node.destroy_timer(self)
+
+
+def _as_bytes(payload: RemotePayload) -> bytes:
+    """Copy a transport buffer out into a new ``bytes`` (no copy if it already is one)."""
+    return payload if isinstance(payload, bytes) else payload.to_bytes()
 
 
 def _takes_two_args(callback: Callable[..., Any]) -> bool:

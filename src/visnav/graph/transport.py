@@ -224,8 +224,10 @@ class ZenohPublisher:
             with self._cache_lock:
                 self._cache.append((bytes(payload), attachment))
         if self._shm is not None and len(payload) >= SHM_THRESHOLD:
+            # never block: subscribers keep received samples (their shared-memory chunks)
+            # queued until their executor takes them, so a full pool means slow readers
             try:
-                buf = self._shm.alloc(len(payload), policy=zshm.BlockOn(zshm.GarbageCollect()))
+                buf = self._shm.alloc(len(payload), policy=zshm.GarbageCollect())
             except Exception:  # noqa: BLE001 - fall back to the socket path
                 buf = None
             if buf is not None:
@@ -241,6 +243,11 @@ class ZenohPublisher:
             self._pub.undeclare()
             if self._queryable is not None:
                 self._queryable.undeclare()
+
+
+def _detach_small(payload: zenoh.ZBytes) -> zenoh.ZBytes | bytes:
+    """Copy a payload below :data:`SHM_THRESHOLD` bytes out of Zenoh's receive buffers."""
+    return payload.to_bytes() if len(payload) < SHM_THRESHOLD else payload
 
 
 class ZenohTransport:
@@ -310,18 +317,23 @@ class ZenohTransport:
     def subscriber(
         self,
         key: str,
-        callback: Callable[[bytes, bytes | None], None],
+        callback: Callable[[zenoh.ZBytes | bytes, zenoh.ZBytes | None], None],
         *,
         history: bool = False,
     ) -> Any:
         """Declare a subscriber to remote samples on ``key``; ``history`` fetches cached samples.
 
-        ``callback(payload, attachment)`` runs on a Zenoh thread.
+        ``callback(payload, attachment)`` runs on a Zenoh thread. Payloads of at least
+        :data:`SHM_THRESHOLD` bytes come as the sample's :class:`zenoh.ZBytes`, uncopied:
+        the receiver copies them out (``to_bytes()``) when, and only if, it needs them.
+        Holding one holds its buffer, which may be a chunk of the sender's shared-memory
+        pool (senders fall back to sockets when their pool is full, see
+        :meth:`ZenohPublisher.put`). Smaller payloads come copied, as ``bytes``: they
+        may be slices of a whole receive batch, which holding would pin.
         """
 
         def on_sample(sample: zenoh.Sample) -> None:
-            att = sample.attachment
-            callback(sample.payload.to_bytes(), att.to_bytes() if att is not None else None)
+            callback(_detach_small(sample.payload), sample.attachment)
 
         sub = self._session.declare_subscriber(key, on_sample, allowed_origin=zenoh.Locality.REMOTE)
         if history:
@@ -329,7 +341,10 @@ class ZenohTransport:
         return sub
 
     def fetch_latched(
-        self, key: str, callback: Callable[[bytes, bytes | None], None], zid: str | None = None
+        self,
+        key: str,
+        callback: Callable[[zenoh.ZBytes | bytes, zenoh.ZBytes | None], None],
+        zid: str | None = None,
     ) -> None:
         """Ask transient-local publishers of ``key`` (of one session, or all) for their cache.
 
@@ -341,8 +356,7 @@ class ZenohTransport:
         def on_reply(reply: Any) -> None:
             ok = reply.ok
             if ok is not None:
-                att = ok.attachment
-                callback(ok.payload.to_bytes(), att.to_bytes() if att is not None else None)
+                callback(_detach_small(ok.payload), ok.attachment)
 
         self._session.get(
             selector,
