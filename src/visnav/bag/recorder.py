@@ -27,8 +27,9 @@ from visnav.bag.writer import BagWriter, default_bag_path
 from visnav.errors import VisnavError
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.context import Context
-from visnav.graph.introspect import subscription_qos_for
+from visnav.graph.introspect import new_published_topics, subscription_qos_for
 from visnav.graph.message_info import MessageInfo
+from visnav.graph.names import is_hidden_name
 from visnav.graph.node import Node, Subscription, Timer
 from visnav.msgs.serde import CdrSerializer, get_message_class
 
@@ -50,10 +51,6 @@ class RecordedTopic:
     type_name: str
     count: int = 0
     qos: str = ""
-
-
-def _hidden(topic: str) -> bool:
-    return any(part.startswith("_") for part in topic.split("/"))
 
 
 class BagRecorder:
@@ -179,7 +176,7 @@ class BagRecorder:
     def _selected(self, topic: str) -> bool:
         if not self.all_topics:
             return topic in self._wanted
-        if not self._include_hidden and _hidden(topic):
+        if not self._include_hidden and is_hidden_name(topic):
             return False
         return not (self._exclude is not None and self._exclude.search(topic))
 
@@ -192,11 +189,10 @@ class BagRecorder:
         if version == self._graph_version:
             return
         self._graph_version = version
-        for topic, types in self.context.graph.topic_names_and_types():
-            if topic in self.topics or topic in self._skipped or not self._selected(topic):
-                continue
-            pubs = [e for e in self.context.graph.endpoints(topic) if e.kind == "publisher"]
-            if not pubs:
+        taken = self.topics.keys() | self._skipped
+        for found in new_published_topics(self.context, taken, include_hidden=True):
+            topic, types = found.name, found.types
+            if not self._selected(topic):
                 continue
             if len(types) != 1:
                 node.get_logger().warning(
@@ -204,7 +200,7 @@ class BagRecorder:
                 )
                 self._skipped.add(topic)
                 continue
-            self._subscribe(node, topic, types[0], pubs)
+            self._subscribe(node, topic, types[0], list(found.publishers))
 
     def _subscribe(self, node: Node, topic: str, type_name: str, pubs: list[Any]) -> None:
         assert self._writer is not None

@@ -21,8 +21,9 @@ from visnav.doctor.errors import DoctorError
 from visnav.doctor.observation import GraphSnapshot, Observation
 from visnav.graph.context import Context
 from visnav.graph.errors import GraphError
-from visnav.graph.introspect import subscription_qos_for, wait_for_discovery
+from visnav.graph.introspect import new_published_topics, subscription_qos_for, wait_for_discovery
 from visnav.graph.message_info import MessageInfo
+from visnav.graph.names import is_hidden_name
 from visnav.graph.node import Node, Subscription
 from visnav.graph.qos import QoSProfile
 from visnav.msgs.errors import MessageError
@@ -33,15 +34,13 @@ __all__ = ["LiveObserver", "graph_snapshot", "observe_live"]
 _ids = itertools.count()
 
 
-def _hidden(name: str) -> bool:
-    return any(part.startswith("_") for part in name.split("/") if part)
-
-
 def graph_snapshot(ctx: Context) -> GraphSnapshot:
     """The graph of ``ctx`` without hidden nodes (doctor's own, CLI helpers)."""
     nodes = tuple(n for n in ctx.graph.nodes() if not n.name.startswith("_"))
     endpoints = tuple(
-        e for e in ctx.graph.endpoints() if not e.node_name.startswith("_") and not _hidden(e.topic)
+        e
+        for e in ctx.graph.endpoints()
+        if not e.node_name.startswith("_") and not is_hidden_name(e.topic)
     )
     names = {f"{e.zid}:{e.entity_id}": e.node_fqn for e in endpoints if e.kind == "publisher"}
     return GraphSnapshot(nodes, endpoints, names)
@@ -68,17 +67,9 @@ class LiveObserver:
 
     def poll(self) -> None:
         """Subscribe to topics that appeared since the last call."""
-        for topic, _ in self.context.graph.topic_names_and_types():
-            if topic in self._subs or topic in self._skipped or _hidden(topic):
-                continue
-            pubs = [
-                e
-                for e in self.context.graph.endpoints(topic)
-                if e.kind == "publisher" and not e.node_name.startswith("_")
-            ]
-            if not pubs:
-                continue
-            pub_types = sorted({e.type_name for e in pubs})
+        taken = self._subs.keys() | self._skipped
+        for found in new_published_topics(self.context, taken, include_tool_publishers=False):
+            topic, pub_types = found.name, found.types
             if len(pub_types) != 1:
                 self._skipped.add(topic)  # topics.type_mismatch reports it
                 continue

@@ -8,15 +8,20 @@ from __future__ import annotations
 
 import difflib
 import time
+from collections.abc import Container
+from dataclasses import dataclass
 
 from visnav.graph.context import Context
 from visnav.graph.errors import GraphError
 from visnav.graph.graph_cache import EndpointInfo
+from visnav.graph.names import is_hidden_name
 from visnav.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 __all__ = [
+    "PublishedTopic",
     "UnknownTopicError",
     "endpoint_qos",
+    "new_published_topics",
     "node_summary",
     "subscription_qos_for",
     "topic_type",
@@ -88,6 +93,55 @@ def endpoint_qos(e: EndpointInfo) -> QoSProfile:
         reliability=ReliabilityPolicy(e.reliability),
         durability=DurabilityPolicy(e.durability),
     )
+
+
+@dataclass(frozen=True)
+class PublishedTopic:
+    """A topic with at least one publisher.
+
+    Attributes:
+        name: the topic.
+        types: the distinct types its publishers announce, sorted (one, unless they disagree).
+        publishers: its publishers.
+    """
+
+    name: str
+    types: tuple[str, ...]
+    publishers: tuple[EndpointInfo, ...]
+
+
+def new_published_topics(
+    ctx: Context,
+    known: Container[str],
+    *,
+    include_hidden: bool = False,
+    include_tool_publishers: bool = True,
+) -> list[PublishedTopic]:
+    """Topics with a publisher that are not in ``known`` (for tools that take every topic).
+
+    ``ros2 bag record -a``, the viewer, doctor and the scenario counter subscribe to
+    each topic once its first publisher shows up; this is their shared scan.
+
+    Args:
+        ctx: the graph.
+        known: topics the caller has taken (or refused) already.
+        include_hidden: also topics with a name token starting with ``_``.
+        include_tool_publishers: count publishers of hidden nodes (``_visnav_*`` tools);
+            without them a topic only tools publish is left out.
+    """
+    out: list[PublishedTopic] = []
+    for topic, _types in ctx.graph.topic_names_and_types():
+        if topic in known or (not include_hidden and is_hidden_name(topic)):
+            continue
+        pubs = tuple(
+            e
+            for e in ctx.graph.endpoints(topic)
+            if e.kind == "publisher"
+            and (include_tool_publishers or not e.node_name.startswith("_"))
+        )
+        if pubs:
+            out.append(PublishedTopic(topic, tuple(sorted({e.type_name for e in pubs})), pubs))
+    return out
 
 
 def subscription_qos_for(ctx: Context, topic: str) -> QoSProfile:

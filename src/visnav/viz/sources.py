@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from visnav.graph.context import Context
-from visnav.graph.introspect import subscription_qos_for
+from visnav.graph.introspect import new_published_topics, subscription_qos_for
 from visnav.graph.node import Node
 from visnav.msgs.serde import get_message_class
 from visnav.tf.ros import DYNAMIC_QOS, STATIC_QOS
@@ -119,8 +119,11 @@ class LiveFeed:
     def scan(self) -> list[str]:
         """Subscribe to topics that appeared since the last scan; return the new ones."""
         new: list[str] = []
-        for topic, types in self.context.graph.topic_names_and_types():
-            if topic in self._subscribed or len(types) != 1:
+        for found in new_published_topics(
+            self.context, self._subscribed, include_hidden=self._wanted is not None
+        ):
+            topic, types = found.name, found.types
+            if len(types) != 1:
                 continue
             if self._wanted is not None and topic not in self._wanted:
                 continue
