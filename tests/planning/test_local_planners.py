@@ -136,6 +136,29 @@ def test_dwa_stops_and_rotates_at_the_goal() -> None:
     assert not dwa.is_goal_reached(done, (0.3, 0.0))  # not stopped
 
 
+def test_dwa_keeps_the_xy_latch_across_replans_to_the_same_goal() -> None:
+    lc = _costmap()
+    dwa = DWAPlanner(DWAParams(latch_xy_goal_tolerance=True, xy_goal_tolerance=0.15))
+    plan = _straight_plan(1.0)
+    plan[-1, 2] = math.pi
+    dwa.set_plan(plan)
+    inside = (float(plan[-1, 0]) - 0.14, 0.0, 0.0)
+    r = dwa.compute_velocity(inside, (0.0, 0.0), lc.costmap, lc.footprint, ID)
+    assert r.v == 0.0
+    assert r.w != 0.0  # latched: turning in place to the goal's yaw
+    drifted = (float(plan[-1, 0]) - 0.16, 0.0, 1.0)  # turning moved the base 2 cm
+    replan = _straight_plan(1.0)
+    replan[-1, 2] = math.pi
+    dwa.set_plan(replan[3:])  # move_base replans from the robot: same goal
+    r = dwa.compute_velocity(drifted, (0.0, 0.5), lc.costmap, lc.footprint, ID)
+    assert r.v == 0.0  # still turning in place, not driving back
+    assert r.w > 0.0
+    assert dwa.is_goal_reached((drifted[0], 0.0, math.pi - 0.05), (0.0, 0.0))
+    other = _straight_plan(2.0)
+    dwa.set_plan(other)  # a new goal clears the latch
+    assert not dwa.is_goal_reached((drifted[0], 0.0, 0.0), (0.0, 0.0))
+
+
 def test_dwa_oscillation_flags_forbid_flipping_rotation() -> None:
     dwa = DWAPlanner()
     p = dwa.params

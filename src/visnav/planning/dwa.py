@@ -41,7 +41,12 @@ Differences: the defaults describe a differential-drive base (``max_vel_y`` =
 holonomic PR2); a circular robot is checked as an exact circle (centre cell
 inscribed or worse) instead of a 16-gon's outline; the stop and rotate commands are
 checked for collisions only (dwa scores them with every critic); the plan is densified
-to the costmap resolution once per cycle (``adjustPlanResolution``).
+to the costmap resolution once per cycle (``adjustPlanResolution``); a new plan to the
+same goal keeps the xy latch (dwa_local_planner resets it on every ``setPlan``, i.e. on
+every move_base replan at ``planner_frequency``: a robot that drifts a centimetre while
+turning in place at the edge of ``xy_goal_tolerance`` then drives back and turns again,
+round and round until the oscillation timeout; nav2's ``SimpleGoalChecker`` with
+``stateful: true`` keeps it likewise).
 """
 
 from __future__ import annotations
@@ -232,10 +237,21 @@ class DWAPlanner:
         self.last_samples = 0
 
     def set_plan(self, plan: NDArray[np.float64]) -> None:
-        """Take a new global plan (global frame); resets the goal latch and oscillation."""
-        self.plan = np.asarray(plan, dtype=np.float64).reshape(-1, 3)
-        self._xy_latched = False
-        self._rotating = False
+        """Take a new global plan (global frame).
+
+        Resets the oscillation flags, and the goal latch when the plan ends at another
+        goal (see the module docs).
+        """
+        new = np.asarray(plan, dtype=np.float64).reshape(-1, 3)
+        same_goal = (
+            len(new) > 0
+            and len(self.plan) > 0
+            and bool(np.allclose(new[-1], self.plan[-1], rtol=0.0, atol=1e-9))
+        )
+        self.plan = new
+        if not same_goal:
+            self._xy_latched = False
+            self._rotating = False
         self._osc.reset()
 
     def reset(self) -> None:
