@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -164,19 +162,8 @@ def test_undecodable_type_live() -> None:
 
 
 @pytest.fixture
-def drone_graph(domain: int) -> Iterator[subprocess.Popen[str]]:
-    env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
-    proc = subprocess.Popen(
-        [sys.executable, str(SCRIPTS / "drone_graph.py"), "30"],
-        env=env,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert proc.stdout is not None
-    assert proc.stdout.readline().strip() == "ready"
-    yield proc
-    proc.kill()
-    proc.wait(timeout=10)
+def drone_graph(start_script: Callable[..., subprocess.Popen[str]]) -> subprocess.Popen[str]:
+    return start_script(SCRIPTS / "drone_graph.py", "30")
 
 
 def test_cross_process_graph_through_the_cli(

@@ -6,7 +6,7 @@ import os
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -21,19 +21,8 @@ SCRIPTS = Path(__file__).parent / "scripts"
 
 
 @pytest.fixture
-def talker(domain: int) -> Iterator[subprocess.Popen[str]]:
-    env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
-    proc = subprocess.Popen(
-        [sys.executable, str(SCRIPTS / "talker.py"), "30"],
-        env=env,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert proc.stdout is not None
-    assert proc.stdout.readline().strip() == "ready"
-    yield proc
-    proc.kill()
-    proc.wait(timeout=10)
+def talker(start_script: Callable[..., subprocess.Popen[str]]) -> subprocess.Popen[str]:
+    return start_script(SCRIPTS / "talker.py", "30")
 
 
 def _cli(domain: int, *args: str, timeout: float = 20.0) -> subprocess.CompletedProcess[str]:

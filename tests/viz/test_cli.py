@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,19 +18,8 @@ SCRIPTS = Path(__file__).parent / "scripts"
 
 
 @pytest.fixture
-def camera(domain: int) -> Iterator[subprocess.Popen[str]]:
-    env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
-    proc = subprocess.Popen(
-        [sys.executable, str(SCRIPTS / "camera_pub.py"), "60"],
-        env=env,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert proc.stdout is not None
-    assert proc.stdout.readline().strip() == "ready"
-    yield proc
-    proc.kill()
-    proc.wait(timeout=10)
+def camera(start_script: Callable[..., subprocess.Popen[str]]) -> subprocess.Popen[str]:
+    return start_script(SCRIPTS / "camera_pub.py", "60")
 
 
 def _cli(capsys: Any, *args: str) -> subprocess.CompletedProcess[str]:
