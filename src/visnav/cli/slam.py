@@ -38,6 +38,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-loop", action="store_true", help="disable loop closure")
     parser.add_argument("--vocabulary", metavar="NPZ", help="a saved vocabulary")
     parser.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    parser.add_argument(
+        "--mono", action="store_true", help="monocular SLAM (depth/odometry only for the scale)"
+    )
+    parser.add_argument(
+        "--scale",
+        choices=("depth", "odometry"),
+        default="depth",
+        help="--mono: metric scale from the depth image at initialisation, or from odometry "
+        "(TUM: groundtruth.txt; bag: odom -> camera in /tf)",
+    )
     parser.set_defaults(func=cmd_slam)
 
 
@@ -60,7 +70,13 @@ def cmd_slam(args: argparse.Namespace) -> int:
     from visnav.slam.config import SlamConfig
     from visnav.slam.offline import slam_bag, slam_tum
 
-    config = SlamConfig(n_features=args.features, seed=args.seed, loop_closure=not args.no_loop)
+    config = SlamConfig(
+        n_features=args.features,
+        seed=args.seed,
+        loop_closure=not args.no_loop,
+        sensor="mono" if args.mono else "rgbd",
+        mono_scale=args.scale,
+    )
     if args.tum is not None:
         camera = None
         if args.camera_info:

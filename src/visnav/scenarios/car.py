@@ -32,12 +32,14 @@ from visnav.msgs.types import Header, Odometry, Quaternion, Transform, Transform
 from visnav.perception.nodes import DepthImageToLaserScanNode
 from visnav.planning import GlobalPlanner, GlobalPlannerParams, GoalStatus
 from visnav.planning.nodes import NavigatorNode
+from visnav.scenarios.car_slam import CarSlamTask
 from visnav.scenarios.contacts import ContactCounter
+from visnav.scenarios.runner import ScenarioError
 from visnav.sim.simulator import Simulator
 from visnav.sim.world import true_occupancy_grid
 from visnav.tf.ros import StaticTransformBroadcaster
 
-__all__ = ["CarTask", "build_car_pipeline", "goal_sequence"]
+__all__ = ["CarTask", "build_car_pipeline", "depth_range_min", "goal_sequence"]
 
 ROBOT_RADIUS_M = 0.33
 """The car's corners reach 0.305 m from its centre; 0.3 let it scrape a wall (seeds 4, 5)."""
@@ -45,6 +47,15 @@ CONTACT_GAP_S = 0.2
 """Contacts closer together than this are one collision event."""
 GOALS = 4
 GOAL_NODES = ("N1", "N2", "N3", "S1", "S2", "S3", "W", "E", "C1", "C2", "corr_nw", "corr_se")
+
+
+def depth_range_min(sim: Simulator) -> float:
+    """The nearest valid depth of the robot's depth camera (its clip / plugin minimum), m."""
+    for cam in sim.robot().description.gazebo.cameras:
+        if cam.kind == "depth":
+            return float(cam.depth_range[0])
+    msg = f"robot {sim.robot().name!r} has no depth camera: the car scenario scans its depth"
+    raise ScenarioError(msg)
 
 
 def goal_sequence(
@@ -92,6 +103,10 @@ class CarTask:
                 **sim_time,
                 "output_frame": "depth_camera_link",
                 "scan_height": 10,
+                # the camera's own minimum depth, not depthimage_to_laserscan's 0.45 m (a
+                # Kinect's): with 0.45 a wall 0.3 m ahead of the lens was invisible and the
+                # planner drove the car into it through "unknown" space (seed 4)
+                "range_min": depth_range_min(sim),
             },
         )
         MapperNode(
@@ -185,6 +200,9 @@ class CarTask:
         }
 
 
-def build_car_pipeline(ctx: Context, sim: Simulator, seed: int) -> list[Any]:
-    """Start the car's nodes on ``ctx``; return its navigation task."""
-    return [CarTask(ctx, sim, seed)]
+def build_car_pipeline(ctx: Context, sim: Simulator, seed: int, *, slam: bool = True) -> list[Any]:
+    """Start the car's nodes on ``ctx``; return its navigation (and SLAM) tasks."""
+    tasks: list[Any] = [CarTask(ctx, sim, seed)]
+    if slam:
+        tasks.append(CarSlamTask(ctx, seed))
+    return tasks

@@ -43,14 +43,24 @@ class SlamConfig:
     ``vocabulary_keyframes`` keyframes exist (unless a vocabulary is given),
     ``loop_min_inliers``, ``loop_max_sigma_t`` (m) / ``loop_max_sigma_r`` (rad)
     (largest standard deviation of the verified pose: weak geometry is refused),
-    ``loop_consistency``, ``loop_exclude_recent``,
-    ``global_ba_after_loop``; ``final_global_ba`` runs on :meth:`finish`.
+    ``loop_max_error_ratio`` (a loop is refused when, after the pose-graph
+    optimisation with it, an edge is off by more than this many standard
+    deviations; 0: no check), ``loop_consistency``, ``loop_exclude_recent``,
+    ``global_ba_after_loop`` (as ORB-SLAM2: without it a loop pose a centimetre or two
+    off stays in the merged map); ``final_global_ba`` runs on :meth:`finish`.
 
     Odometry (optional ``odom_pose`` per frame): predicts the motion instead of
     the constant-velocity model, and after ``reinit_after_lost`` lost frames
     without relocalisation restarts tracking at the odometry-predicted pose
     (the new part of the map joins the old one when a loop or relocalisation
     links them).
+
+    Monocular (``sensor="mono"``, :mod:`visnav.slam.monocular`): keypoints get no
+    depth; the map starts from two views (median parallax ``init_min_parallax_deg``,
+    ``init_min_points`` points) with the metric scale from the depth image at
+    initialisation (``mono_scale="depth"``) or the odometry translation between
+    the two views (``"odometry"``); new points are triangulated with the
+    ``triangulation_neighbours`` best covisible keyframes. The scale drifts.
 
     ``seed`` seeds every random choice (RANSAC, vocabulary); ``dense_stride`` is the
     pixel stride of the points kept per keyframe for the dense cloud.
@@ -84,17 +94,23 @@ class SlamConfig:
     vocabulary_size: int = 500
     vocabulary_keyframes: int = 12
     loop_min_inliers: int = 50
-    loop_max_sigma_t: float = 0.01
-    loop_max_sigma_r: float = 0.003
+    loop_max_sigma_t: float = 0.05
+    loop_max_sigma_r: float = 0.01
+    loop_max_error_ratio: float = 3.0
     loop_consistency: int = 1
     loop_exclude_recent: int = 20
     loop_min_gap: int = 10
-    global_ba_after_loop: bool = False
+    global_ba_after_loop: bool = True
     final_global_ba: bool = True
     global_ba_iterations: int = 15
     seed: int = 0
     dense_stride: int = 8
     reinit_after_lost: int = 5
+    sensor: Literal["rgbd", "mono"] = "rgbd"
+    mono_scale: Literal["depth", "odometry"] = "depth"
+    init_min_parallax_deg: float = 1.0
+    init_min_points: int = 50
+    triangulation_neighbours: int = 10
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,11 @@ from :class:`~visnav.slam.place_recognition.LoopDetector` are verified by
 localising the keyframe in the candidate's map region; a loop is accepted only
 when the pose found there is well determined (its standard deviations below
 ``loop_max_sigma_t`` / ``loop_max_sigma_r``: matches on one distant wall can
-leave a rotation-translation ambiguity of a degree). The correction then:
+leave a rotation-translation ambiguity of a degree), and only when the pose graph
+with the new constraint stays consistent (no edge off by more than
+``loop_max_error_ratio`` standard deviations after optimisation, RTAB-Map's
+``RGBD/OptimizeMaxError``): look-alike places (rooms furnished alike) pass the
+geometric check but not this one. The correction then:
 
 1. adds the relative pose (weighted by its covariance) to the loop constraints
    and optimises the pose graph (gtsam), keyframe 0 fixed;
@@ -65,6 +69,7 @@ class LoopCloser:
             exclude_recent=config.loop_exclude_recent, consistency=config.loop_consistency
         )
         self.loops: list[LoopConstraint] = []
+        self.rejected: list[LoopConstraint] = []
         self.last_loop_kf = -(10**9)
         self._global_ba = global_ba
 
@@ -110,18 +115,24 @@ class LoopCloser:
             sigma_t, sigma_r = loc.sigmas()
             if sigma_t > cfg.loop_max_sigma_t or sigma_r > cfg.loop_max_sigma_r:
                 continue
-            self._close(kf, c, loc)
-            return True
+            if self._close(kf, c, loc):
+                return True
         return False
 
-    def _close(self, kf: Keyframe, loop_id: int, loc: Localization) -> None:
+    def _close(self, kf: Keyframe, loop_id: int, loc: Localization) -> bool:
         m = self.map
         loop_kf = m.keyframes[loop_id]
         t_ij = loop_kf.t_cw @ inverse(loc.t_cw)
-        self.loops.append(LoopConstraint(loop_id, kf.id, t_ij, loc.covariance))
+        loop = LoopConstraint(loop_id, kf.id, t_ij, loc.covariance)
+        corrections = optimize_pose_graph(
+            m, [*self.loops, loop], max_error_ratio=self.config.loop_max_error_ratio
+        )
+        if corrections is None:  # inconsistent with the keyframe chain: a look-alike place
+            self.rejected.append(loop)
+            return False
+        self.loops.append(loop)
         kf.loop_edges.add(loop_id)
         loop_kf.loop_edges.add(kf.id)
-        corrections = optimize_pose_graph(m, self.loops)
         apply_point_corrections(m, corrections)
         for kp, p in zip(loc.keypoints.tolist(), loc.points.tolist(), strict=True):
             existing = int(kf.frame.map_points[kp])
@@ -142,3 +153,4 @@ class LoopCloser:
             self._global_ba()
         self.last_loop_kf = kf.id
         self.detector.reset()
+        return True

@@ -19,7 +19,19 @@ the node publishes ``map -> base_frame`` itself. Parameters: ``map_frame``,
 ``odom_frame``, ``base_frame``, ``publish_tf``, ``transform_tolerance`` (s the
 map -> odom stamp is post-dated, as amcl), ``tf_publish_period``, ``queue_size``,
 ``approx_sync``, ``depth_scale`` (16UC1 units per metre), ``n_features``,
-``seed``, ``loop_closure``, ``local_ba``, ``vocabulary`` (a saved ``.npz``).
+``seed``, ``loop_closure``, ``local_ba``, ``vocabulary`` (a saved ``.npz``),
+``max_frame_rate`` (Hz; 0: every frame), ``odometry_prior``, ``sensor`` (``rgbd`` or
+``mono``) and ``mono_scale`` (``depth``: the depth image scales the monocular map at
+initialisation; ``odometry``: TF ``odom -> base`` does, and ``depth/image`` is not
+subscribed).
+
+``max_frame_rate`` processes a frame only when its stamp is at least ``1 /
+max_frame_rate`` after the last processed one (rtabmap's ``Rtabmap/DetectionRate``
+and ORB-SLAM's frame skipping serve the same purpose): the choice depends on the
+stamps alone, never on the wall clock, so a run stays deterministic. With
+``odometry_prior`` (default) the ``odom -> base_frame`` motion predicts the camera
+motion and restarts tracking after a loss; without it tracking is purely visual
+(constant-velocity model) and odometry only anchors the map frame at the first frame.
 
 Inputs that cannot be used (a camera_info that changes or disagrees with the
 image, an implausible depth scale) are logged once per distinct problem and the
@@ -55,7 +67,9 @@ from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig
 from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse
+from visnav.slam.monocular import check_mono_settings
 from visnav.slam.system import SlamSystem
+from visnav.slam.trajectory import Trajectory
 from visnav.slam.vocabulary import Vocabulary
 from visnav.tf import Buffer, TransformException, matrix_to_pose, matrix_to_transform
 from visnav.tf.ros import TransformBroadcaster, TransformListener
@@ -106,12 +120,22 @@ class SlamNode(Node):
         dense_period = float(p("dense_cloud_period", 0.0).value)
         self.dense_voxel = float(p("dense_voxel", 0.05).value)
         vocab_path = str(p("vocabulary", "").value)
+        rate = float(p("max_frame_rate", 0.0).value)
+        if not (rate >= 0.0 and np.isfinite(rate)):
+            text = f"max_frame_rate {rate}: expected a rate in Hz >= 0 (0 processes every frame)"
+            raise SlamInputError(text)
+        self._min_period_ns = round(1e9 / rate) if rate > 0 else 0
+        self.odometry_prior = bool(p("odometry_prior", value=True).value)
+        self._last_stamp: int | None = None
+        self.skipped = 0
         self.config = SlamConfig(
             n_features=int(p("n_features", 1000).value),
             seed=int(p("seed", 0).value),
             loop_closure=bool(p("loop_closure", value=True).value),
             local_ba=bool(p("local_ba", value=True).value),
             depth_scale=depth_scale,
+            sensor=str(p("sensor", "rgbd").value),  # type: ignore[arg-type]
+            mono_scale=str(p("mono_scale", "depth").value),  # type: ignore[arg-type]
             final_global_ba=False,
         )
         self.vocabulary = Vocabulary.load(vocab_path) if vocab_path else None
@@ -136,12 +160,19 @@ class SlamNode(Node):
         empty = get_message_class("std_msgs/msg/Empty")
         self.create_subscription(empty, "slam/dense_cloud_request", self._on_dense_request, 1)
         image = message_filters.Subscriber(self, Image, "rgb/image", queue)
-        depth = message_filters.Subscriber(self, Image, "depth/image", queue)
-        info = message_filters.Subscriber(self, CameraInfo, "rgb/camera_info", queue)
+        check_mono_settings(self.config.sensor, self.config.mono_scale)
+        self._mono_odom = self.config.sensor == "mono" and self.config.mono_scale == "odometry"
+        if self._mono_odom and not self.odom_frame:
+            text = "mono_scale 'odometry' needs odom_frame (TF odom -> base scales the map)"
+            raise SlamInputError(text)
+        inputs = [image]
+        if not self._mono_odom:  # monocular with scale from odometry needs no depth
+            inputs.append(message_filters.Subscriber(self, Image, "depth/image", queue))
+        inputs.append(message_filters.Subscriber(self, CameraInfo, "rgb/camera_info", queue))
         self._sync: message_filters.SimpleFilter = (
-            message_filters.ApproximateTime([image, depth, info], queue)
+            message_filters.ApproximateTime(inputs, queue)
             if approx
-            else message_filters.TimeSynchronizer([image, depth, info], queue)
+            else message_filters.TimeSynchronizer(inputs, queue)
         )
         self._sync.register_callback(self._on_frame)
         if self.publish_tf and tf_period > 0:
@@ -201,16 +232,19 @@ class SlamNode(Node):
 
     # -------------------------------------------------------------- callbacks
 
-    def _on_frame(self, image: Image, depth: Image, info: CameraInfo) -> None:
+    def _on_frame(self, image: Image, *rest: Any) -> None:
+        depth, info = (None, rest[0]) if self._mono_odom else (rest[0], rest[1])
         try:
             self._process(image, depth, info)
         except VisnavError as exc:
             self.dropped += 1
             self._report(f"dropped a frame: {exc}")
 
-    def _process(self, image: Image, depth: Image, info: CameraInfo) -> None:
-        cam = self._check_camera(info, image)
+    def _process(self, image: Image, depth: Image | None, info: CameraInfo) -> None:
         stamp = time_to_ns(image.header.stamp)
+        if self._skip(stamp):
+            return
+        cam = self._check_camera(info, image)
         camera_frame = str(image.header.frame_id)
         if self._t_base_cam is None:
             t_base_cam = self._lookup(self.base_frame, camera_frame, stamp)
@@ -230,11 +264,16 @@ class SlamNode(Node):
                 vocabulary=self.vocabulary,
                 initial_pose=t_odom_base @ self._t_base_cam,
             )
-        depth_arr = image_to_numpy(depth)
-        if depth.encoding not in ("16UC1", "32FC1", "mono16"):
+        depth_arr = None if depth is None else image_to_numpy(depth)
+        if depth is not None and depth.encoding not in ("16UC1", "32FC1", "mono16"):
             text = f"depth encoding {depth.encoding!r}: expected 32FC1 (m) or 16UC1 (mm)"
             raise SlamInputError(text)
-        odom_pose = t_odom_base @ self._t_base_cam if self.odom_frame else None
+        odom_pose = (
+            t_odom_base @ self._t_base_cam
+            if self.odom_frame and (self.odometry_prior or self._mono_odom)
+            else None
+        )
+        self._last_stamp = stamp
         result = self.system.track(_image_array(image), depth_arr, stamp, odom_pose=odom_pose)
         for w in result.warnings:
             self._report(w.split(": ", 1)[-1] if w.startswith("frame ") else w, error=False)
@@ -252,6 +291,28 @@ class SlamNode(Node):
             self._path.append(pose)
         self._path_pub.publish(Path(header=header, poses=list(self._path)))
         self._publish_tf()
+
+    def _skip(self, stamp: int) -> bool:
+        """True when ``max_frame_rate`` leaves this frame out (1 ms tolerance for jitter)."""
+        if self._last_stamp is None or self._min_period_ns <= 0:
+            return False
+        if stamp - self._last_stamp >= self._min_period_ns - 1_000_000:
+            return False
+        self.skipped += 1
+        return True
+
+    def trajectory(self) -> Trajectory:
+        """Poses of ``base_frame`` in the map for all tracked frames (loop corrections applied).
+
+        Before the camera's mounting is known (no frame processed) the trajectory is empty.
+        """
+        if self.system is None or self._t_base_cam is None:
+            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+        traj = self.system.trajectory()
+        if len(traj) == 0:
+            return traj
+        t_cb = inverse(self._t_base_cam)
+        return Trajectory.from_matrices(traj.stamps, traj.matrices() @ t_cb)
 
     def _check_scale(self, t_map_base: FloatArray, t_odom_base: FloatArray) -> None:
         if self._scale_checked or not self.odom_frame:

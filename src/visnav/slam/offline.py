@@ -113,7 +113,7 @@ class _Collector:
     def track(
         self,
         image: NDArray[Any],
-        depth: NDArray[Any],
+        depth: NDArray[Any] | None,
         stamp_ns: int,
         *,
         odom_pose: FloatArray | None = None,
@@ -234,6 +234,14 @@ def slam_tum(
     cfg = dataclasses.replace(cfg, depth_scale=depth_scale)
     gt_path = seq.groundtruth_path
     groundtruth = read_tum(gt_path) if gt_path is not None else None
+    mono_odom = cfg.sensor == "mono" and cfg.mono_scale == "odometry"
+    if mono_odom and groundtruth is None:
+        text = (
+            f"monocular SLAM with scale from odometry needs poses: TUM folder {seq.folder} has "
+            "no groundtruth.txt (used as the odometry of the initial frames); use "
+            "--scale depth (depth.txt) instead"
+        )
+        raise SlamInputError(text)
     initial = (
         _initial_pose(groundtruth, seq.frames[0].stamp, max_difference) if groundtruth else None
     )
@@ -242,7 +250,15 @@ def slam_tum(
     for n, (frame, rgb, depth) in enumerate(seq.images()):
         if max_frames is not None and n >= max_frames:
             break
-        collector.track(rgb, depth, round(frame.stamp * 1e9))
+        odom = None
+        if mono_odom and groundtruth is not None and system.state == "uninitialized":
+            # ground truth stands in for odometry at initialisation only (scale); tracking
+            # stays visual so the evaluation against it stays honest
+            odom = _initial_pose(groundtruth, frame.stamp, max_difference)
+            if odom is None:
+                continue
+        image_depth = None if mono_odom else depth
+        collector.track(rgb, image_depth, round(frame.stamp * 1e9), odom_pose=odom)
     out = seq.folder / "visnav_slam.txt" if output is None else (Path(output) if output else None)
     return collector.finish(out, groundtruth)
 
@@ -296,8 +312,17 @@ def slam_bag(
     """
     log = logger or _LOG
     bag = Path(path)
+    cfg = config or SlamConfig()
+    mono_odom = cfg.sensor == "mono" and cfg.mono_scale == "odometry"
     with BagReader(bag) as reader:
         topics = reader.topics
+        if mono_odom and (not odom_frame or "/tf" not in topics):
+            text = (
+                f"monocular SLAM with scale from odometry needs the {odom_frame or 'odom'} -> "
+                f"camera transform in /tf; bag {bag} has no /tf (or no odom_frame was given): "
+                "use scale from depth"
+            )
+            raise SlamInputError(text)
         for name, what in (
             (image_topic, "image"),
             (depth_topic, "depth"),
@@ -361,7 +386,7 @@ def slam_bag(
                         )
                     system = SlamSystem(
                         cam,
-                        config or SlamConfig(),
+                        cfg,
                         vocabulary=_vocabulary(vocabulary),
                         initial_pose=initial,
                     )
@@ -373,7 +398,10 @@ def slam_bag(
                     continue
                 stamp = time_to_ns(img.header.stamp)
                 odom = _odom_pose(tf, odom_frame, state["camera_frame"], stamp)
-                collector.track(image_to_numpy(img), image_to_numpy(dep), stamp, odom_pose=odom)
+                if mono_odom and odom is None and collector.system.state == "uninitialized":
+                    continue  # the odometry TF is not there yet: it scales the initial map
+                depth_arr = None if mono_odom else image_to_numpy(dep)
+                collector.track(image_to_numpy(img), depth_arr, stamp, odom_pose=odom)
     collector_final: _Collector | None = state["collector"]
     if collector_final is None:
         text = (

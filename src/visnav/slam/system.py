@@ -44,6 +44,13 @@ from visnav.slam.geometry import (
 from visnav.slam.loop_closing import LoopCloser
 from visnav.slam.mapping import create_points, cull_recent_points, fuse_points
 from visnav.slam.matching import search_by_projection
+from visnav.slam.monocular import (
+    MonoInitializer,
+    check_mono_settings,
+    create_initial_map,
+    mono_ba_window,
+    triangulate_new_points,
+)
 from visnav.slam.optimizer import LoopConstraint, bundle_adjustment
 from visnav.slam.place_recognition import Localization, localize_in_map
 from visnav.slam.slam_map import Keyframe, SlamMap
@@ -154,15 +161,30 @@ class SlamSystem:
         self._lost_frames = 0
         self._odom_last: FloatArray | None = None
         self._odom_pred: FloatArray | None = None
+        check_mono_settings(cfg.sensor, cfg.mono_scale)
+        self._mono: MonoInitializer | None = None
+        if cfg.sensor == "mono":
+            self._mono = MonoInitializer(
+                self.camera,
+                scale=cfg.mono_scale,
+                min_parallax_deg=cfg.init_min_parallax_deg,
+                min_points=cfg.init_min_points,
+                min_depth=cfg.min_depth,
+                max_depth=cfg.max_depth,
+            )
 
     # ------------------------------------------------------------------ input
 
     def _prepare(
-        self, image: NDArray[Any], depth: NDArray[Any]
+        self, image: NDArray[Any], depth: NDArray[Any] | None
     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None, NDArray[np.float32], list[str]]:
         cam = self.camera
         cam.check_image(image.shape, source="image")
-        if depth.shape[:2] != image.shape[:2]:
+        if depth is None:
+            if self._mono is None:
+                text = "depth is None: RGB-D SLAM needs a depth image per frame (or sensor 'mono')"
+                raise SlamInputError(text)
+        elif depth.shape[:2] != image.shape[:2]:
             text = (
                 f"depth is {depth.shape[1]}x{depth.shape[0]} but the image is {image.shape[1]}x"
                 f"{image.shape[0]}: SLAM needs depth registered to the image (same size)"
@@ -180,6 +202,8 @@ class SlamSystem:
         else:
             text = f"image has shape {image.shape}: expected (H, W) mono or (H, W, 3) colour"
             raise SlamInputError(text)
+        if depth is None:  # monocular without depth
+            return gray, colour, np.full(gray.shape, np.nan, dtype=np.float32), []
         depth_m = depth_to_metres(depth, depth_scale=self.config.depth_scale)
         warnings = check_depth_scale(depth_m[::4, ::4], source="depth")
         return gray, colour, depth_m, warnings
@@ -189,17 +213,18 @@ class SlamSystem:
     def track(
         self,
         image: NDArray[Any],
-        depth: NDArray[Any],
+        depth: NDArray[Any] | None,
         stamp_ns: int,
         *,
         odom_pose: FloatArray | None = None,
     ) -> TrackResult:
-        """Process one synchronised RGB-D frame.
+        """Process one synchronised RGB-D frame (or one image with ``sensor="mono"``).
 
         Args:
             image: (H, W) uint8 mono or (H, W, 3) uint8 RGB, rectified.
             depth: (H, W) float32 metres or uint16 (``config.depth_scale`` units per
-                metre, default millimetres), registered to ``image``.
+                metre, default millimetres), registered to ``image``. Monocular: only
+                read (for the scale) until the map is initialised; None otherwise.
             stamp_ns: capture time in nanoseconds.
             odom_pose: optional ``T_odom_camera`` from wheel (or other) odometry at
                 ``stamp_ns``: predicts the motion and lets tracking restart after a
@@ -216,12 +241,20 @@ class SlamSystem:
         sw.start("features")
         gray, colour, depth_m, warnings = self._prepare(image, depth)
         cv2.setRNGSeed(int(self.config.seed) + self.n_frames)
-        frame = self.extractor.extract(gray, depth_m, self.camera, int(stamp_ns))
+        mono = self._mono is not None
+        frame = self.extractor.extract(gray, None if mono else depth_m, self.camera, int(stamp_ns))
         self.n_frames += 1
         kf_added = loop = reloc = reinit = False
         inliers = 0
         self._odom_pred = self._predict_from_odometry(odom_pose)
-        if self.state == "uninitialized":
+        if self.state == "uninitialized" and self._mono is not None:
+            sw.start("mapping")
+            mono_depth = None if depth is None else depth_m
+            if self._initialize_mono(frame, mono_depth, odom_pose, warnings):
+                self.state = "ok"
+                kf_added = True
+                inliers = int((frame.map_points >= 0).sum())
+        elif self.state == "uninitialized":
             if self._initialize(frame, depth_m, colour):
                 self.state = "ok"
                 kf_added = True
@@ -317,6 +350,41 @@ class SlamSystem:
         self._local_points = self.map.local_points([kf.id])
         self._last_kf_frame = self.n_frames
         self.loop_closer.add_keyframe(kf)
+        return True
+
+    def _initialize_mono(
+        self,
+        frame: Frame,
+        depth_m: NDArray[np.float32] | None,
+        odom_pose: FloatArray | None,
+        warnings: list[str],
+    ) -> bool:
+        """Two-view initialisation (monocular); on failure say why in ``warnings``."""
+        assert self._mono is not None
+        ref = self._mono.ref
+        view, why = self._mono.step(frame, depth_m=depth_m, odom_pose=odom_pose)
+        if view is None or ref is None:
+            warnings.append(f"frame {frame.stamp_ns}: {why}")
+            return False
+        kf0, kf1 = create_initial_map(
+            self.map,
+            self.camera,
+            ref,
+            frame,
+            view,
+            self._mono.origin(self.initial_pose),
+            inv_sigma2_levels=self.extractor.inv_level_sigma2,
+            depth_m=self._mono.ref_depth if self.config.mono_scale == "depth" else None,
+            min_depth=self.config.min_depth,
+            max_depth=self.config.max_depth,
+        )
+        self._records.append(_FrameRecord(ref.stamp_ns, kf0.id, np.eye(4)))
+        self._ref_kf = kf1.id
+        self._local_kfs = [kf1.id, kf0.id]
+        self._local_points = self.map.local_points(self._local_kfs)
+        self._last_kf_frame = self.n_frames
+        self.loop_closer.add_keyframe(kf0)
+        self.loop_closer.add_keyframe(kf1)
         return True
 
     def _predict_from_odometry(self, odom_pose: FloatArray | None) -> FloatArray | None:
@@ -507,6 +575,8 @@ class SlamSystem:
     def _store_cloud(
         self, kf: Keyframe, depth_m: NDArray[np.float32], colour: NDArray[np.uint8] | None
     ) -> None:
+        if self._mono is not None:  # monocular: no dense cloud (depth is for the scale only)
+            return
         kf.cloud = depth_samples(
             depth_m,
             colour,
@@ -532,6 +602,16 @@ class SlamSystem:
         create_points(m, kf)
         self._store_cloud(kf, depth_m, colour)
         m.update_connections(kf)
+        if self._mono is not None:
+            triangulate_new_points(
+                m,
+                self.camera,
+                kf,
+                kf.best_covisibles(cfg.triangulation_neighbours),
+                scale_factor=cfg.scale_factor,
+                scales=self.extractor.scales,
+            )
+            m.update_connections(kf)
         cull_recent_points(m, kf.id)
         neighbours = kf.best_covisibles(cfg.fuse_neighbours)
         _, cur_pts = m.keyframe_points(kf)
@@ -546,6 +626,8 @@ class SlamSystem:
             m.update_connections(m.keyframes[n])
         if cfg.local_ba and len(m.keyframes) >= 2:
             window = [kf.id, *kf.best_covisibles(cfg.local_window - 1)]
+            if self._mono is not None:
+                window = mono_ba_window(window)
             bundle_adjustment(
                 m,
                 self.camera,
@@ -585,7 +667,7 @@ class SlamSystem:
             self.camera,
             ids,
             inv_sigma2_levels=self.extractor.inv_level_sigma2,
-            fixed_ids=[ids[0]],
+            fixed_ids=ids[:2] if self._mono is not None else [ids[0]],  # mono: hold the scale
             iterations=iterations or self.config.global_ba_iterations,
             min_observations=2,
         )
