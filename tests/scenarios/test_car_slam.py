@@ -169,6 +169,7 @@ def test_task_without_frames_reports_zeros(ctx: Context) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(2400)  # two runs of ~5 min alone on 2 cores
 def test_car_run_slam_acceptance(tmp_path: Path) -> None:
     """Issue 9: the default car run (seed 0, a loop back past the start) meets the SLAM targets."""
     runs = []
