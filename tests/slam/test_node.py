@@ -67,6 +67,7 @@ def test_node_publishes_map_to_odom_pose_path_and_clouds(
             "n_features": 400,
             "map_cloud_period": 0.001,
             "tf_publish_period": 0.0,
+            "path_publish_period": 0.0,
         },
     )
     feeder = Node("feeder", context=ctx)
@@ -120,6 +121,42 @@ def test_node_publishes_map_to_odom_pose_path_and_clouds(
     assert np.linalg.norm(pose[:3, 3] - truth[:3, 3]) < 0.02
     assert len(cloud_to_xyz(got["map"][-1])) > 100
     assert len(cloud_to_xyz(got["dense"][-1])) > 100
+
+
+def test_node_publishes_the_whole_path_at_most_every_path_publish_period(
+    ctx: Context, short_sequence: Sequence
+) -> None:
+    seq = short_sequence
+    period = 3 * float(np.median(np.diff(seq.stamps_ns))) * 1e-9  # every third frame
+    SlamNode(
+        context=ctx,
+        parameter_overrides={
+            "odom_frame": "",
+            "base_frame": "camera_optical",
+            "n_features": 400,
+            "approx_sync": False,
+            "path_publish_period": period * 0.999,
+        },
+    )
+    feeder = Node("feeder", context=ctx)
+    img = feeder.create_publisher(Image, "rgb/image", 10)
+    dep = feeder.create_publisher(Image, "depth/image", 10)
+    inf = feeder.create_publisher(CameraInfo, "rgb/camera_info", 10)
+    poses: list[PoseStamped] = []
+    paths: list[Path] = []
+    feeder.create_subscription(PoseStamped, "slam/pose", poses.append, 10)
+    feeder.create_subscription(Path, "slam/path", paths.append, 10)
+    info = camera_info_for(seq.camera, frame_id="camera_optical")
+    for i in range(10):
+        header = Header(stamp=ns_to_time(int(seq.stamps_ns[i])), frame_id="camera_optical")
+        info.header = header
+        inf.publish(info)
+        img.publish(numpy_to_image(seq.rgb[i], "rgb8", header=header))
+        dep.publish(numpy_to_image(seq.depth[i], "32FC1", header=header))
+        ctx.spin_some()
+    assert len(poses) == 10
+    assert [len(p.poses) for p in paths] == [1, 4, 7, 10]  # frames 0, 3, 6, 9
+    assert paths[-1].poses[-1].header.stamp == poses[-1].header.stamp
 
 
 def test_node_reports_a_changed_camera_info(ctx: Context, short_sequence: Sequence) -> None:

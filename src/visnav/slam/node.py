@@ -9,7 +9,9 @@ Topics (relative, rtabmap's names):
 * out: ``/tf`` ``map -> odom`` (so ``odom -> base_link`` from odometry stays
   continuous, as ROS localisation does), ``slam/pose`` (``PoseStamped`` of the
   base frame in the map), ``slam/path`` (``nav_msgs/Path``, rebuilt after a loop
-  closure), ``slam/map_points`` (sparse map, every ``map_cloud_period`` s) and
+  closure; the whole path, so at most every ``path_publish_period`` s of stamps (1.0,
+  rtabmap's detection rate; 0: every frame) and after each loop), ``slam/map_points``
+  (sparse map, every ``map_cloud_period`` s) and
   ``slam/dense_cloud`` (voxelised ``dense_voxel`` m, on request or every
   ``dense_cloud_period`` s when > 0).
 
@@ -117,6 +119,8 @@ class SlamNode(Node):
         approx = bool(p("approx_sync", value=True).value)
         depth_scale = float(p("depth_scale", 1000.0).value)
         map_period = float(p("map_cloud_period", 1.0).value)
+        self._path_period_ns = round(1e9 * max(0.0, float(p("path_publish_period", 1.0).value)))
+        self._path_sent_ns: int | None = None
         dense_period = float(p("dense_cloud_period", 0.0).value)
         self.dense_voxel = float(p("dense_voxel", 0.05).value)
         vocab_path = str(p("vocabulary", "").value)
@@ -289,7 +293,10 @@ class SlamNode(Node):
             self._rebuild_path()
         else:
             self._path.append(pose)
-        self._path_pub.publish(Path(header=header, poses=list(self._path)))
+        due = self._path_sent_ns is None or stamp - self._path_sent_ns >= self._path_period_ns
+        if due or result.loop:  # the whole path each time: at most every path_publish_period
+            self._path_sent_ns = stamp
+            self._path_pub.publish(Path(header=header, poses=list(self._path)))
         self._publish_tf()
 
     def _skip(self, stamp: int) -> bool:
