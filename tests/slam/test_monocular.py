@@ -127,6 +127,14 @@ def test_unknown_sensor_or_scale_is_refused() -> None:
         SlamSystem(SMALL, SlamConfig(sensor="mono", mono_scale="imu"))  # type: ignore[arg-type]
 
 
+def test_the_config_itself_refuses_an_unknown_sensor() -> None:
+    # the node decides which topics to subscribe from the config before any SlamSystem exists
+    with pytest.raises(SlamInputError, match="sensor 'stereo'"):
+        SlamConfig(sensor="stereo")  # type: ignore[arg-type]
+    with pytest.raises(SlamInputError, match="mono_scale 'imu'"):
+        dataclasses.replace(SlamConfig(sensor="mono"), mono_scale="imu")  # type: ignore[arg-type]
+
+
 def test_tum_mono_odometry_scale_needs_groundtruth(tmp_path: Path) -> None:
     cam = CameraIntrinsics(125.0, 125.0, 79.5, 59.5, 160, 120)
     folder = write_tum_folder(tmp_path / "tum", SyntheticRoom(seed=1), cam, circle_trajectory(3))

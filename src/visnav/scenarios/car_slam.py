@@ -178,27 +178,30 @@ class CarSlamTask:
 
     def trajectories(self) -> tuple[Trajectory, Trajectory]:
         """``(estimate, ground truth)`` of ``base_footprint`` at the tracked frames' stamps."""
-        est = self.slam.trajectory()
-        empty = Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+        return self._paired(self.slam.trajectory())
+
+    def _paired(self, est: Trajectory) -> tuple[Trajectory, Trajectory]:
+        """The poses of ``est`` within the ground truth's span, and the truth at their stamps."""
         if len(est) == 0 or len(self._gt_stamps) < 2:
-            return empty, empty
+            return Trajectory.empty(), Trajectory.empty()
         est_ns = np.round(est.stamps * 1e9).astype(np.int64)
         idx, gt = interpolate_poses(
             np.asarray(self._gt_stamps, dtype=np.int64), np.stack(self._gt_poses), est_ns
         )
         if len(idx) == 0:
-            return empty, empty
+            return Trajectory.empty(), Trajectory.empty()
         return est.subset(idx), Trajectory.from_matrices(est.stamps[idx], gt)
 
     def results(self) -> dict[str, Any]:
         """The ``slam`` summary key (module docstring)."""
         system = self.slam.system
-        est, gt = self.trajectories()
+        tracked = self.slam.trajectory()
+        est, gt = self._paired(tracked)
         out: dict[str, Any] = slam_metrics(est, gt)
         out.update(
             {
                 "frames": system.n_frames if system is not None else 0,
-                "tracked": len(self.slam.trajectory()),
+                "tracked": len(tracked),
                 "evaluated": len(est),
                 "tracking_lost": system.n_lost if system is not None else 0,
                 "relocalized": system.n_relocalized if system is not None else 0,

@@ -8,7 +8,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SlamConfig", "TrackResult", "TrackingState"]
+from visnav.slam.errors import SlamInputError
+
+__all__ = ["SlamConfig", "TrackResult", "TrackingState", "check_mono_settings"]
 
 TrackingState = Literal["uninitialized", "ok", "lost"]
 
@@ -111,6 +113,26 @@ class SlamConfig:
     init_min_parallax_deg: float = 1.0
     init_min_points: int = 50
     triangulation_neighbours: int = 10
+
+    def __post_init__(self) -> None:
+        check_mono_settings(self.sensor, self.mono_scale)
+
+
+def check_mono_settings(sensor: str, mono_scale: str) -> None:
+    """Refuse unknown ``sensor`` / ``mono_scale`` values.
+
+    Raises:
+        SlamInputError: naming the value and the accepted ones.
+    """
+    if sensor not in ("rgbd", "mono"):
+        text = f"sensor {sensor!r}: expected 'rgbd' or 'mono'"
+        raise SlamInputError(text)
+    if mono_scale not in ("depth", "odometry"):
+        text = (
+            f"mono_scale {mono_scale!r}: expected 'depth' (depth image at initialisation) or "
+            "'odometry' (odometry translation between the initial frames)"
+        )
+        raise SlamInputError(text)
 
 
 @dataclass(frozen=True)

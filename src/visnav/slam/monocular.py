@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from visnav.slam.camera import CameraIntrinsics
+from visnav.slam.config import check_mono_settings
 from visnav.slam.errors import SlamInputError
 from visnav.slam.features import Frame
 from visnav.slam.geometry import CHI2_MONO, inverse, transform
@@ -54,7 +55,6 @@ from visnav.slam.slam_map import Keyframe, SlamMap
 __all__ = [
     "MonoInitializer",
     "TwoView",
-    "check_mono_settings",
     "create_initial_map",
     "mono_ba_window",
     "triangulate_new_points",
@@ -68,23 +68,6 @@ MonoScale = Literal["depth", "odometry"]
 
 _CHI2_1DOF = 3.841
 """95 % chi-square quantile, 1 degree of freedom (distance to an epipolar line)."""
-
-
-def check_mono_settings(sensor: str, mono_scale: str) -> None:
-    """Refuse unknown ``sensor`` / ``mono_scale`` values.
-
-    Raises:
-        SlamInputError: naming the value and the accepted ones.
-    """
-    if sensor not in ("rgbd", "mono"):
-        text = f"sensor {sensor!r}: expected 'rgbd' or 'mono'"
-        raise SlamInputError(text)
-    if mono_scale not in ("depth", "odometry"):
-        text = (
-            f"mono_scale {mono_scale!r}: expected 'depth' (depth image at initialisation) or "
-            "'odometry' (odometry translation between the initial frames)"
-        )
-        raise SlamInputError(text)
 
 
 @dataclass(frozen=True)

@@ -69,7 +69,6 @@ from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig
 from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse
-from visnav.slam.monocular import check_mono_settings
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
 from visnav.slam.vocabulary import Vocabulary
@@ -164,7 +163,6 @@ class SlamNode(Node):
         empty = get_message_class("std_msgs/msg/Empty")
         self.create_subscription(empty, "slam/dense_cloud_request", self._on_dense_request, 1)
         image = message_filters.Subscriber(self, Image, "rgb/image", queue)
-        check_mono_settings(self.config.sensor, self.config.mono_scale)
         self._mono_odom = self.config.sensor == "mono" and self.config.mono_scale == "odometry"
         if self._mono_odom and not self.odom_frame:
             text = "mono_scale 'odometry' needs odom_frame (TF odom -> base scales the map)"
@@ -314,7 +312,7 @@ class SlamNode(Node):
         Before the camera's mounting is known (no frame processed) the trajectory is empty.
         """
         if self.system is None or self._t_base_cam is None:
-            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+            return Trajectory.empty()
         traj = self.system.trajectory()
         if len(traj) == 0:
             return traj

@@ -46,7 +46,6 @@ from visnav.slam.mapping import create_points, cull_recent_points, fuse_points
 from visnav.slam.matching import search_by_projection
 from visnav.slam.monocular import (
     MonoInitializer,
-    check_mono_settings,
     create_initial_map,
     mono_ba_window,
     triangulate_new_points,
@@ -161,7 +160,6 @@ class SlamSystem:
         self._lost_frames = 0
         self._odom_last: FloatArray | None = None
         self._odom_pred: FloatArray | None = None
-        check_mono_settings(cfg.sensor, cfg.mono_scale)
         self._mono: MonoInitializer | None = None
         if cfg.sensor == "mono":
             self._mono = MonoInitializer(
@@ -695,7 +693,7 @@ class SlamSystem:
     def trajectory(self) -> Trajectory:
         """Camera poses of all tracked frames in the map frame (loop corrections applied)."""
         if not self._records:
-            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+            return Trajectory.empty()
         stamps = np.array([r.stamp_ns for r in self._records], dtype=np.float64) * 1e-9
         mats = np.stack(
             [inverse(r.t_c_ref @ self.map.keyframes[r.ref_kf].t_cw) for r in self._records]
@@ -707,7 +705,7 @@ class SlamSystem:
         kfs = [kf for kf in self.map.keyframes if not kf.bad]
         stamps = np.array([kf.stamp_ns for kf in kfs], dtype=np.float64) * 1e-9
         if not kfs:
-            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+            return Trajectory.empty()
         return Trajectory.from_matrices(stamps, np.stack([kf.t_wc for kf in kfs]))
 
     def map_cloud(self, *, min_observations: int = 2) -> NDArray[np.float32]:

@@ -121,6 +121,11 @@ class Trajectory:
         return len(self.stamps)
 
     @classmethod
+    def empty(cls) -> Trajectory:
+        """A trajectory with no pose."""
+        return cls(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+
+    @classmethod
     def from_matrices(cls, stamps: ArrayLike, matrices: ArrayLike) -> Trajectory:
         """Build a trajectory from stamps (s) and (N, 4, 4) ``T_world_body`` matrices."""
         t = np.asarray(stamps, dtype=np.float64).reshape(-1)
