@@ -263,6 +263,7 @@ def test_ctrl_c_stops_every_child(domain: int, test_nodes_path: Path, tmp_path: 
     assert "Traceback" not in proc.stderr.read()
 
 
+@pytest.mark.ci
 @pytest.mark.slow  # ~1.5-3 s: three interpreters start
 def test_children_die_with_a_killed_launcher(
     domain: int, test_nodes_path: Path, tmp_path: Path

@@ -506,6 +506,7 @@ def test_cli_errors_are_one_line(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_cli_publishes_to_another_process(mujoco_gl: str) -> None:
     del mujoco_gl
     domain = str(100 + os.getpid() % 100)

@@ -52,6 +52,7 @@ def _counts(png: Path) -> dict[str, int]:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian chromium is not installed")
 def test_web_viewer_renders_image_and_cloud_in_headless_chromium(tmp_path: Path, vz: Any) -> None:
     cdp = _cdp()
