@@ -87,6 +87,11 @@ _ALL = (
         "camera_info.distortion_unknown",
         "distortion_model is empty/unknown where rectification is needed",
     ),
+    _c(
+        "camera_info.unrectified_consumer",
+        "a node reads the raw (distorted) images while no rectified topic exists",
+        needs_graph=True,
+    ),
     _c("camera_info.stamp_mismatch", "image and camera_info stamps do not match"),
     _c("camera_info.frame_mismatch", "image and camera_info frame_ids differ"),
     # tf

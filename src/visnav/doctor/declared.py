@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 from visnav.doctor.expect import Expectations
 from visnav.errors import VisnavError
 
-__all__ = ["Declared", "DeclaredTopic", "declared_from"]
+__all__ = ["Declared", "DeclaredJoint", "DeclaredTopic", "declared_from"]
 
 _LOG = logging.getLogger("visnav.doctor")
 
@@ -50,6 +50,27 @@ class DeclaredTopic:
 
 
 @dataclass(frozen=True)
+class DeclaredJoint:
+    """A joint of the robot description: what places ``child`` on ``parent``.
+
+    Attributes:
+        name: the joint's name.
+        parent: parent link.
+        child: child link.
+        moves: False for a fixed joint (its transform belongs on ``/tf_static``).
+        xyz: the joint origin's translation, metres.
+        rpy: the joint origin's roll, pitch, yaw, radians.
+    """
+
+    name: str
+    parent: str
+    child: str
+    moves: bool
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
 class Declared:
     """Declarations by topic, and the robot's joints.
 
@@ -57,11 +78,13 @@ class Declared:
         topics: declared topic properties.
         fixed_joints: child link -> parent link of every fixed joint.
         moving_joints: child link -> parent link of every joint that moves.
+        joints: child link -> the joint placing it (name, parent, origin).
     """
 
     topics: Mapping[str, DeclaredTopic] = field(default_factory=dict)
     fixed_joints: Mapping[str, str] = field(default_factory=dict)
     moving_joints: Mapping[str, str] = field(default_factory=dict)
+    joints: Mapping[str, DeclaredJoint] = field(default_factory=dict)
 
     def get(self, topic: str) -> DeclaredTopic | None:
         """The declaration of ``topic``, if any."""
@@ -123,7 +146,11 @@ def _from_urdf(text: str, topic: str) -> Declared:
             )
     fixed = {j.child: j.parent for j in urdf.joints.values() if not j.moves}
     moving = {j.child: j.parent for j in urdf.joints.values() if j.moves}
-    return Declared(out, fixed, moving)
+    joints = {
+        j.child: DeclaredJoint(j.name, j.parent, j.child, j.moves, j.origin.xyz, j.origin.rpy)
+        for j in urdf.joints.values()
+    }
+    return Declared(out, fixed, moving, joints)
 
 
 def declared_from(
@@ -162,4 +189,4 @@ def declared_from(
             encoding=base.encoding if exp.encoding is None else exp.encoding,
             source=f"{base.source}; {src}" if base.source else src,
         )
-    return Declared(topics, declared.fixed_joints, declared.moving_joints)
+    return Declared(topics, declared.fixed_joints, declared.moving_joints, declared.joints)

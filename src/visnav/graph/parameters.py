@@ -147,6 +147,8 @@ class ParameterStore:
             msg = f"parameter '{name}' of node {self._node} is already declared"
             raise ParameterAlreadyDeclaredError(msg)
         declared = ParameterType.from_value(value)
+        if isinstance(value, list | tuple) and not value:
+            declared = ParameterType.NOT_SET  # no element type yet: take the override's
         if not ignore_override and name in self._overrides:
             value = _coerce(name, declared, self._overrides[name])
             declared = (

@@ -23,6 +23,9 @@ roslaunch                                      visnav
                                                ``world``, ``paused``; ``/use_sim_time``
 =============================================  ============================================
 
+ego-planner's nodes (``ego_planner_node``, ``traj_server``, ``waypoint_generator``) and the
+camera drivers (``usb_cam``, ``cv_camera``) are mapped in :mod:`visnav.launch.ros_planner_nodes`.
+
 Private parameters (``<param>`` inside ``<node>``, ``~name``) become the node's
 parameters; nested names (``a/b``) become ROS 2's ``a.b``. A node with
 ``respawn="true"`` runs in its own process; the others share one.
@@ -33,15 +36,15 @@ from __future__ import annotations
 import contextlib
 import difflib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 from visnav.launch.description import NodeSpec
 from visnav.launch.static_tf import StaticTransformError, static_transform_params_from_args
 from visnav.launch.substitutions import VIRTUAL_PACKAGES
+from visnav.safe_yaml import YamlError, load_yaml_file
+from visnav.textfile import TextFileError, read_text
 
 __all__ = [
     "EMPTY_WORLD_ARGS",
@@ -50,6 +53,7 @@ __all__ = [
     "ParamServer",
     "RosNode",
     "empty_world_node",
+    "fold_spawns",
     "translate_node",
 ]
 
@@ -59,7 +63,9 @@ MAPPABLE = (
     "$(find gazebo_ros)/launch/empty_world.launch, of other roslaunch XML files and of visnav "
     "YAML launch files, and <node> of robot_state_publisher, tf2_ros or tf "
     "static_transform_publisher, gazebo_ros spawn_model, depthimage_to_laserscan, image_proc, "
-    "rviz (-> the viz node). ROS 2 launch files (Python or XML) are out of scope: write a visnav "
+    "rviz (-> the viz node), ego_planner ego_planner_node and traj_server, waypoint_generator "
+    "(folded into the planner), usb_cam usb_cam_node, cv_camera cv_camera_node. ROS 2 launch "
+    "files (Python or XML) are out of scope: write a visnav "
     "YAML launch file (docs/launch.md)"
 )
 
@@ -98,6 +104,10 @@ class ParamServer:
         self._values: dict[str, Any] = {}
         self._sources: dict[str, str] = {}
         self._read: set[str] = set()
+        self.notes: list[str] = []
+        """What translators left out or folded (shown when the launch starts)."""
+        self.folded: dict[str, Any] = {}
+        """Values a folded node hands to another (waypoint_generator's goal topic)."""
 
     def set(self, name: str, value: Any, source: str) -> None:
         """Set ``name`` (absolute); a mapping sets its leaves under ``name``."""
@@ -295,11 +305,9 @@ def _spawn_model(node: RosNode, params: ParamServer, packages: Mapping[str, str]
             source = None if text is None else str(text)
         elif flag == "-file":
             try:
-                source = Path(value).read_text()
-            except OSError as exc:
-                issues.append(
-                    f"spawn_model {node.fqn}: -file {value}: cannot read it ({exc.strerror})"
-                )
+                source = read_text(value, what="the model file")
+            except TextFileError as exc:
+                issues.append(f"spawn_model {node.fqn}: -file: {exc}")
         elif flag == "-J":
             if i + 2 >= len(args):
                 issues.append(f"spawn_model {node.fqn}: -J needs a joint name and a position")
@@ -374,8 +382,8 @@ def _image_proc(node: RosNode, params: ParamServer, packages: Mapping[str, str])
 
 def _rviz_fixed_frame(config: str) -> str | None:
     try:
-        data = yaml.safe_load(Path(config).read_text())
-    except (OSError, yaml.YAMLError):
+        data = load_yaml_file(config, what="the RViz config")
+    except YamlError:
         return None
     with contextlib.suppress(KeyError, TypeError):
         frame = data["Visualization Manager"]["Global Options"]["Fixed Frame"]
@@ -430,7 +438,10 @@ def translate_node(node: RosNode, params: ParamServer, packages: Mapping[str, st
         params: the parameter server after the whole file was loaded.
         packages: package directories known to the import (for the simulator's meshes).
     """
-    translate = NODE_TRANSLATORS.get((node.pkg, node.type))
+    from visnav.launch.ros_planner_nodes import PLANNER_TRANSLATORS  # noqa: PLC0415 (cycle)
+
+    key = (node.pkg, node.type)
+    translate = NODE_TRANSLATORS.get(key) or PLANNER_TRANSLATORS.get(key)
     if translate is None:
         return None, [
             f"<node pkg={node.pkg!r} type={node.type!r}> ({node.fqn}) has no visnav counterpart"
@@ -507,3 +518,47 @@ def empty_world_node(
         source=source,
     )
     return spec, issues, notes
+
+
+def fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
+    """Give spawn_model's robot to the sim node (visnav builds the world and robot together).
+
+    Gazebo spawns robots into a running world; visnav's simulator composes the MuJoCo
+    model once, so a launch file's ``spawn_model`` becomes the ``sim`` node's ``robot``
+    (URDF text), ``spawn`` and ``robot_namespace``. The simulator publishes the robot's
+    state itself, so an imported ``robot_state_publisher`` is then left out.
+    """
+    sims = [n for n in nodes if n.executable == "sim"]
+    spawns = [n for n in nodes if n.executable == "spawn_model"]
+    if len(sims) != 1 or len(spawns) != 1 or "robot_description" not in spawns[0].params:
+        return nodes
+    sim, spawn = sims[0], spawns[0]
+    p = spawn.params
+    params = dict(sim.params)
+    params["robot"] = str(p["robot_description"])
+    params["spawn"] = [
+        float(p.get("x", 0.0)),
+        float(p.get("y", 0.0)),
+        float(p.get("z", 0.0)),
+        float(p.get("Y", 0.0)),
+    ]
+    if p.get("robot_namespace"):
+        params["robot_namespace"] = str(p["robot_namespace"])
+    folded = replace(sim, params=params)
+    notes.append(
+        f"spawn_model {spawn.namespace.rstrip('/')}/{spawn.name} ({spawn.source}) is folded into "
+        f"the sim node {sim.namespace.rstrip('/')}/{sim.name}: visnav builds world and robot "
+        "together"
+    )
+    out: list[NodeSpec] = []
+    for n in nodes:
+        if n is spawn:
+            continue
+        if n.executable == "robot_state_publisher":
+            notes.append(
+                f"robot_state_publisher {n.namespace.rstrip('/')}/{n.name} ({n.source}) is left "
+                "out: the sim publishes the spawned robot's /tf and /tf_static"
+            )
+            continue
+        out.append(folded if n is sim else n)
+    return out

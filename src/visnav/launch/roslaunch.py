@@ -33,8 +33,6 @@ from pathlib import Path
 from typing import Any
 from xml.parsers import expat
 
-import yaml
-
 from visnav.launch.description import LaunchDescription, NodeSpec
 from visnav.launch.errors import (
     LaunchArgError,
@@ -49,8 +47,10 @@ from visnav.launch.ros_nodes import (
     ParamServer,
     RosNode,
     empty_world_node,
+    fold_spawns,
     translate_node,
 )
+from visnav.launch.ros_planner_nodes import translation_order
 from visnav.launch.substitutions import (
     VIRTUAL_PACKAGES,
     SubstitutionContext,
@@ -58,6 +58,8 @@ from visnav.launch.substitutions import (
     substitute,
 )
 from visnav.launch.yaml_format import IncludeLoader, Scope, join_namespace, parse_bool
+from visnav.safe_yaml import load_yaml
+from visnav.textfile import TextFileError, read_text
 
 __all__ = ["XmlElement", "load_roslaunch", "parse_xml"]
 
@@ -340,10 +342,9 @@ class _File:
             return None
         if kind == "textfile":
             try:
-                return Path(text).read_text()
-            except OSError as exc:
-                msg = f"{self.at(line)}<param textfile={text!r}>: cannot read it ({exc.strerror})"
-                raise LaunchParseError(msg) from None
+                return read_text(text, what="the <param textfile=...>")
+            except TextFileError as exc:
+                raise LaunchParseError(f"{self.at(line)}{exc}") from None
         if kind == "command":
             return self.run_command(text, line)
         return self.typed(text, element.attrs.get("type"), line)
@@ -364,7 +365,9 @@ class _File:
         if kind in ("bool", "boolean"):
             return parse_bool(text.strip(), "bool param", self.at(line))
         if kind == "yaml":
-            return yaml.safe_load(text)
+            return load_yaml(
+                text, source=f"{self.at(line)}<param>", what="its YAML", error=LaunchParseError
+            )
         msg = f"{self.at(line)}<param type={kind!r}>: expected str, int, double, bool, yaml or auto"
         raise LaunchParseError(msg)
 
@@ -427,19 +430,20 @@ class _File:
         if "file" in element.attrs:
             path = self.attr(element, "file") or ""
             try:
-                text = Path(path).read_text()
-            except OSError as exc:
-                msg = f"{self.at(line)}<rosparam file={path!r}>: cannot read it ({exc.strerror})"
-                raise LaunchParseError(msg) from None
+                text = read_text(path, what="the <rosparam file=...>")
+            except TextFileError as exc:
+                raise LaunchParseError(f"{self.at(line)}{exc}") from None
         else:
             text = element.text
             if parse_bool(self.attr(element, "subst_value", "false"), "subst_value", self.at(line)):
                 text = self.sub(text, line)
-        try:
-            data = yaml.safe_load(text) if text.strip() else None
-        except yaml.YAMLError as exc:
-            msg = f"{self.at(line)}<rosparam>: the YAML does not parse: {exc}"
-            raise LaunchParseError(msg) from None
+        data = (
+            load_yaml(
+                text, source=f"{self.at(line)}<rosparam>", what="its YAML", error=LaunchParseError
+            )
+            if text.strip()
+            else None
+        )
         if data is None:
             return
         if not isinstance(data, dict):
@@ -595,11 +599,10 @@ def load_roslaunch_file(
         msg = f"{path}: included from itself ({' -> '.join([*chain, str(path)])})"
         raise LaunchParseError(msg)
     try:
-        text = path.read_text()
-    except OSError as exc:
+        text = read_text(path, what="the launch file")
+    except TextFileError as exc:
         via = f" (included from {chain[-1]})" if chain else ""
-        msg = f"{path}: cannot read the launch file ({exc.strerror}){via}"
-        raise LaunchParseError(msg) from None
+        raise LaunchParseError(f"{exc}{via}") from None
     own = own_package(path)
     if own is not None:
         state.packages.setdefault(*own)
@@ -608,50 +611,6 @@ def load_roslaunch_file(
     root = parse_xml(text, str(path))
     file = _File(state, path, args, _RosScope(scope.ns, scope.remaps), ctx, chain, passed_through)
     file.run(root)
-
-
-def _fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
-    """Give spawn_model's robot to the sim node (visnav builds the world and robot together).
-
-    Gazebo spawns robots into a running world; visnav's simulator composes the MuJoCo
-    model once, so a launch file's ``spawn_model`` becomes the ``sim`` node's ``robot``
-    (URDF text), ``spawn`` and ``robot_namespace``. The simulator publishes the robot's
-    state itself, so an imported ``robot_state_publisher`` is then left out.
-    """
-    sims = [n for n in nodes if n.executable == "sim"]
-    spawns = [n for n in nodes if n.executable == "spawn_model"]
-    if len(sims) != 1 or len(spawns) != 1 or "robot_description" not in spawns[0].params:
-        return nodes
-    sim, spawn = sims[0], spawns[0]
-    p = spawn.params
-    params = dict(sim.params)
-    params["robot"] = str(p["robot_description"])
-    params["spawn"] = [
-        float(p.get("x", 0.0)),
-        float(p.get("y", 0.0)),
-        float(p.get("z", 0.0)),
-        float(p.get("Y", 0.0)),
-    ]
-    if p.get("robot_namespace"):
-        params["robot_namespace"] = str(p["robot_namespace"])
-    folded = replace(sim, params=params)
-    notes.append(
-        f"spawn_model {spawn.namespace.rstrip('/')}/{spawn.name} ({spawn.source}) is folded into "
-        f"the sim node {sim.namespace.rstrip('/')}/{sim.name}: visnav builds world and robot "
-        "together"
-    )
-    out: list[NodeSpec] = []
-    for n in nodes:
-        if n is spawn:
-            continue
-        if n.executable == "robot_state_publisher":
-            notes.append(
-                f"robot_state_publisher {n.namespace.rstrip('/')}/{n.name} ({n.source}) is left "
-                "out: the sim publishes the spawned robot's /tf and /tf_static"
-            )
-            continue
-        out.append(folded if n is sim else n)
-    return out
 
 
 def load_roslaunch(
@@ -691,15 +650,18 @@ def load_roslaunch(
         chain,
         scope.passed_through,
     )
-    nodes: list[NodeSpec] = []
-    for item in state.items:
-        if isinstance(item, NodeSpec):
-            nodes.append(item)
-            continue
+    translated: dict[int, NodeSpec | None] = {}
+    ros_nodes = [(i, n) for i, n in enumerate(state.items) if isinstance(n, RosNode)]
+    for i, item in sorted(ros_nodes, key=lambda p: translation_order((p[1].pkg, p[1].type))):
         spec, issues = translate_node(item, state.params, state.packages)
         state.issues.extend(f"{item.source}: {text}" for text in issues)
-        if spec is not None:
-            nodes.append(spec)
+        translated[i] = spec
+    state.notes.extend(state.params.notes)
+    nodes = [
+        spec
+        for i, item in enumerate(state.items)
+        if (spec := item if isinstance(item, NodeSpec) else translated[i]) is not None
+    ]
     if state.issues:
         count = len(state.issues)
         msg = (
@@ -707,7 +669,7 @@ def load_roslaunch(
             f"file: {'; '.join(state.issues)}. visnav maps: {MAPPABLE}"
         )
         raise RoslaunchImportError(msg)
-    nodes = _fold_spawns(nodes, state.notes)
+    nodes = fold_spawns(nodes, state.notes)
     sim_time = state.params.get("/use_sim_time")
     if sim_time is not None:
         use = parse_bool(sim_time, "/use_sim_time", f"{state.params.source('/use_sim_time')}: ")

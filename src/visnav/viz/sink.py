@@ -14,6 +14,8 @@ Entities (``world`` is the fixed frame, z up):
                                     ``Transform3D`` + ``Pinhole``
 ``world/cameras/<ns>/<name>``       its images (``Image``, ``EncodedImage``,
                                     ``DepthImage`` with ``meter``)
+``world/robot_model/<robot>``       ``robot_description`` (RViz's RobotModel): each link's
+                                    visuals, placed by TF (:mod:`visnav.viz.robot_model`)
 ``world/<topic>``                   clouds and scans (``Points3D``), odometry and
                                     poses (``Arrows3D``; odometry keeps a ``path``
                                     child), paths (``LineStrips3D``), occupancy
@@ -21,8 +23,10 @@ Entities (``world`` is the fixed frame, z up):
 ==================================  ================================================
 
 Geometry is logged already transformed into the fixed frame (as RViz draws it), so
-topics nest freely; only cameras carry an entity transform, because Rerun projects
-images through a pinhole placed by its entity's transform.
+topics nest freely; only cameras and robot links carry an entity transform, because
+Rerun projects images through a pinhole placed by its entity's transform and a link's
+visuals are logged once. With ``layout`` the recording gets the default blueprint
+(:func:`visnav.viz.layout.default_blueprint`): the 3D view with the cameras beside it.
 """
 
 from __future__ import annotations
@@ -44,10 +48,12 @@ from visnav.viz._rerun import rr
 from visnav.viz.display import image_to_display, message_to_display
 from visnav.viz.errors import VizError
 from visnav.viz.geometry import cloud_points, colorize, pose_matrix, scan_points, transform_points32
+from visnav.viz.layout import default_blueprint
 from visnav.viz.markers import DELETE, DELETEALL, MESH_RESOURCE, marker_archetypes
 from visnav.viz.placement import FramePlacer
+from visnav.viz.robot_model import RobotModel, parse_robot_description
 
-__all__ = ["SUPPORTED_TYPES", "RerunSink"]
+__all__ = ["SUPPORTED_TYPES", "RerunSink", "shows"]
 
 _LOG = logging.getLogger("visnav.viz")
 
@@ -64,8 +70,20 @@ SUPPORTED_TYPES = (
     "geometry_msgs/msg/PoseStamped",
     "visualization_msgs/msg/Marker",
     "visualization_msgs/msg/MarkerArray",
+    "std_msgs/msg/String",
 )
-"""Message types the sink shows; others are counted and skipped."""
+"""Message types the sink shows; others are counted and skipped (``String``: only on a
+``robot_description`` topic, see :func:`shows`)."""
+
+_STRING = "std_msgs/msg/String"
+
+
+def shows(topic: str, type_name: str) -> bool:
+    """Whether the sink shows ``topic`` of ``type_name`` (a string only as robot_description)."""
+    if type_name == _STRING:
+        return topic.rstrip("/").rsplit("/", 1)[-1] == "robot_description"
+    return type_name in SUPPORTED_TYPES
+
 
 _COLOR_MODELS: dict[str, Literal["L", "RGB", "RGBA", "BGR", "BGRA"]] = {
     "rgb8": "RGB",
@@ -123,6 +141,9 @@ class RerunSink:
         path_keep: odometry path points kept (a point is added per 1 cm moved).
         strict: raise on a message that cannot be shown (default: warn once per topic
             and count it in :meth:`stats`).
+        layout: send the default blueprint (3D view, cameras beside it) and update it as
+            cameras appear.
+        tf_prefix: the robot model's TF prefix (RViz's RobotModel *TF Prefix*).
     """
 
     def __init__(
@@ -139,6 +160,8 @@ class RerunSink:
         arrow_length: float = 0.5,
         path_keep: int = 2000,
         strict: bool = False,
+        layout: bool = True,
+        tf_prefix: str = "",
     ) -> None:
         if max_points is not None and max_points < 1:
             text = f"max_points is {max_points}: expected at least 1 (or None for every point)"
@@ -164,6 +187,11 @@ class RerunSink:
         self._tracks: dict[str, list[NDArray[np.float64]]] = {}
         self._marker_kinds: dict[str, int] = {}
         self._warned: set[tuple[str, str]] = set()
+        self._layout = layout
+        self._tf_prefix = tf_prefix
+        self._cameras: list[str] = []
+        self.robot_models: dict[str, RobotModel] = {}
+        """The robot model of each robot_description topic."""
         self.counts: dict[str, int] = {}
         """Messages logged, per topic."""
         self.errors: dict[str, int] = {}
@@ -183,8 +211,11 @@ class RerunSink:
             "geometry_msgs/msg/PoseStamped": self._pose,
             "visualization_msgs/msg/Marker": self._marker_msg,
             "visualization_msgs/msg/MarkerArray": self._marker_array,
+            _STRING: self._robot_description,
         }
         recording.log(self._root, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        if layout:
+            recording.send_blueprint(default_blueprint(self._root, []))
 
     # ------------------------------------------------------------------ public
 
@@ -217,7 +248,7 @@ class RerunSink:
         type_name = getattr(msg, "__msgtype__", type(msg).__name__)
         with self._lock:
             self.types.setdefault(topic, type_name)
-            handler = self._handlers.get(type_name)
+            handler = self._handlers.get(type_name) if shows(topic, type_name) else None
             if handler is None:
                 self._warn_once(topic, "type", f"{topic}: type {type_name} is not shown")
                 return False
@@ -261,7 +292,7 @@ class RerunSink:
                 "errors": self.errors.get(topic, 0),
                 "dropped": dropped.get(topic, 0),
                 "reason": reasons.get(topic, ""),
-                "supported": type_name in SUPPORTED_TYPES,
+                "supported": shows(topic, type_name),
             }
         return out
 
@@ -318,6 +349,20 @@ class RerunSink:
                 self._tf_axes.add(frame)
                 self.recording.log(entity, rr.TransformAxes3D(self._axis), static=True)
             self.recording.log(entity, self._transform3d(matrix))
+        for model in self.robot_models.values():
+            model.log_links(self.recording, lambda frame: self.placer.lookup(frame, 0))
+
+    # ------------------------------------------------------------------ robot model
+
+    def _robot_description(self, topic: str, msg: Any, t: int) -> None:
+        urdf = parse_robot_description(str(msg.data), source=topic)
+        parts = [rr.escape_entity_path_part(p) for p in topic.split("/")[:-1] if p]
+        name = "/".join([*parts, rr.escape_entity_path_part(str(urdf.name))])
+        model = RobotModel(urdf, f"{self._root}/robot_model/{name}", tf_prefix=self._tf_prefix)
+        model.log_geometry(self.recording)
+        self.robot_models[topic] = model
+        self._at(t)
+        model.log_links(self.recording, lambda frame: self.placer.lookup(frame, 0))
 
     # ------------------------------------------------------------------ cameras
 
@@ -330,6 +375,10 @@ class RerunSink:
         camera = f"{self._root}/cameras/{rr.escape_entity_path_part(ns.strip('/') or 'camera')}"
         leaf = topic[len(ns) :] if topic.startswith(ns) else topic
         leaf_parts = [rr.escape_entity_path_part(p) for p in leaf.split("/") if p]
+        if camera not in self._cameras:
+            self._cameras.append(camera)
+            if self._layout:
+                self.recording.send_blueprint(default_blueprint(self._root, self._cameras))
         return camera, "/".join([camera, *leaf_parts])
 
     def _place_camera(self, topic: str, camera: str, header: Any, t: int) -> None:

@@ -19,7 +19,7 @@ from visnav.graph.introspect import new_published_topics, subscription_qos_for
 from visnav.graph.node import Node
 from visnav.msgs.serde import get_message_class
 from visnav.tf.ros import DYNAMIC_QOS, STATIC_QOS
-from visnav.viz.sink import SUPPORTED_TYPES, RerunSink
+from visnav.viz.sink import RerunSink, shows
 
 __all__ = ["LiveFeed", "feed_bag"]
 
@@ -127,7 +127,7 @@ class LiveFeed:
                 continue
             if self._wanted is not None and topic not in self._wanted:
                 continue
-            if self._wanted is None and types[0] not in SUPPORTED_TYPES:
+            if self._wanted is None and not shows(topic, types[0]):
                 continue
             self._subscribe(topic, types[0], subscription_qos_for(self.context, topic))
             new.append(topic)

@@ -59,6 +59,7 @@ def check_camera_info(ctx: CheckContext) -> Iterator[Finding]:
             continue
         paired[info.name] = image
         yield from _pair(ctx, image, info)
+        yield from _unrectified_consumers(ctx, image, info)
     for info in ctx.topics_of_type(CAMERA_INFO):
         if info.samples:
             yield from _intrinsics(ctx, info, paired.get(info.name))
@@ -73,6 +74,56 @@ def _rect_needed(ctx: CheckContext, info: TopicData) -> tuple[bool, str]:
         if name.startswith(ns + "/image_rect"):
             return True, f"{name} exists"
     return False, ""
+
+
+_NOT_CONSUMERS = ("record", "rviz", "viewer", "image_view", "rqt", "rerun")
+"""Node names that show or store images without using their geometry."""
+
+
+def _unrectified_consumers(
+    ctx: CheckContext, image: TopicData, info: TopicData
+) -> Iterator[Finding]:
+    """A node reads distorted raw images while no rectified topic exists (live graph only).
+
+    SLAM, feature tracking and projection assume a pinhole: on a lens with distortion
+    they need ``image_rect`` (image_proc's rectify), or their own undistortion.
+    """
+    if not info.samples or "image_raw" not in image.name.rsplit("/", 1)[-1]:
+        return
+    msg = info.samples[-1].msg
+    d = np.asarray(msg.d, dtype=np.float64).reshape(-1)
+    if not d.size or not np.any(d != 0.0):
+        return
+    ns = image.name.rsplit("/", 1)[0]
+    if any(name.startswith(ns + "/image_rect") for name in ctx.all_topic_names()):
+        return
+    readers = sorted(
+        {
+            e.node_fqn
+            for e in ctx.endpoints(image.name, "subscription")
+            if not any(word in e.node_name.lower() for word in _NOT_CONSUMERS)
+        }
+    )
+    if not readers:
+        return
+    yield Finding(
+        Severity.WARNING,
+        "camera_info.unrectified_consumer",
+        f"{', '.join(readers)} read(s) {image.name}, distorted ({msg.distortion_model} "
+        f"D={np.round(d, 4).tolist()}), and no {ns}/image_rect exists",
+        {
+            "image_topic": image.name,
+            "camera_info_topic": info.name,
+            "consumers": readers,
+            "distortion_model": str(msg.distortion_model),
+            "d": d.tolist(),
+            "expected_rectified_topic": f"{ns}/image_rect",
+        },
+        f"run image_proc in namespace {ns or '/'} (it publishes {ns}/image_rect from "
+        f"{image.name} and {info.name}) and remap the consumers' input to {ns}/image_rect, "
+        "or make sure each consumer undistorts with D itself",
+        image.name,
+    )
 
 
 def _intrinsics(ctx: CheckContext, info: TopicData, image: TopicData | None) -> Iterator[Finding]:

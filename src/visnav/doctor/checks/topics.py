@@ -43,6 +43,17 @@ def _similar(topic: str, candidates: set[str]) -> list[str]:
     return difflib.get_close_matches(topic, sorted(candidates - {topic}), n=3, cutoff=0.6)
 
 
+def _of_types(ctx: CheckContext, names: set[str], types: set[str]) -> set[str]:
+    """The topics of ``names`` that carry one of ``types`` (all of them if ``types`` is empty).
+
+    A suggested remap must lead to the subscriber's own type: a CameraInfo subscription
+    remapped to an Image topic would fail with a type mismatch.
+    """
+    if not types:
+        return names
+    return {n for n in names if _observed_types(ctx, n) & types}
+
+
 def _observed_types(ctx: CheckContext, topic: str) -> set[str]:
     types = {e.type_name for e in ctx.endpoints(topic, "publisher") if e.type_name}
     data = ctx.obs.topics.get(topic)
@@ -65,8 +76,9 @@ def check_expected_topics(ctx: CheckContext) -> Iterator[Finding]:
     published = {t for t in ctx.all_topic_names() if _is_published(ctx, t)}
     for name, exp in ctx.expect.topics.items():
         if not _is_published(ctx, name):
-            variants = namespace_variants(name, published)
-            similar = [s for s in _similar(name, published) if s not in variants]
+            candidates = _of_types(ctx, published, {exp.type} if exp.type else set())
+            variants = namespace_variants(name, candidates)
+            similar = [s for s in _similar(name, candidates) if s not in variants]
             evidence: dict[str, object] = {"topic": name, "expected_type": exp.type or "any"}
             if variants:
                 evidence["exists_under_other_namespace"] = variants
@@ -169,7 +181,7 @@ def check_graph_topics(
                     topic,
                 )
             elif topic not in skip:
-                similar = _similar(topic, published)
+                similar = _similar(topic, _of_types(ctx, published, sub_types))
                 yield Finding(
                     Severity.WARNING,
                     "topics.no_publisher",

@@ -303,6 +303,64 @@ def _required_chains(ctx: CheckContext) -> list[tuple[str, str, str]]:
     return unique
 
 
+def _missing_link(
+    ctx: CheckContext, t_root: str, s_root: str
+) -> tuple[tuple[str, str], str, dict[str, Any]]:
+    """The transform that joins two TF trees: ``(parent, child)``, the fix and evidence.
+
+    The root of one tree is a link the robot description places with a joint: the
+    joint's parent is the missing parent (``base_link -> camera_link``), not the other
+    tree's root (``map -> camera_link`` would pin the camera to the map). Without a
+    description, ``map -> odom`` is localisation's and a tree holding a sensor's frame
+    hangs from the vehicle's base frame.
+    """
+    for orphan in (s_root, t_root):
+        joint = ctx.declared.joints.get(orphan)
+        if joint is None:
+            continue
+        evidence = {"robot_description_joint": joint.name, "joint_type_moves": joint.moves}
+        if joint.moves:
+            fix = (
+                f"publish {joint.parent} -> {orphan}, the moving joint '{joint.name}' of "
+                f"robot_description: run robot_state_publisher on the description and "
+                f"publish '{joint.name}' on /joint_states"
+            )
+        else:
+            x, y, z = (f"{v:g}" for v in joint.xyz)
+            roll, pitch, yaw = (f"{v:g}" for v in joint.rpy)
+            fix = (
+                f"publish {joint.parent} -> {orphan}, the fixed joint '{joint.name}' of "
+                "robot_description: run robot_state_publisher on the description, or "
+                f"`visnav tf static {x} {y} {z} {yaw} {pitch} {roll} {joint.parent} {orphan}`"
+            )
+        return (joint.parent, orphan), fix, evidence
+    if (t_root, s_root) == ("map", "odom"):
+        fix = "publish the transform map -> odom (localisation / SLAM publishes it)"
+        return (t_root, s_root), fix, {}
+    base = ctx.base_frame()
+    if base is not None and base not in (t_root, s_root):
+        base_root = ctx.tf_root(base)
+        loose = s_root if base_root == t_root else t_root if base_root == s_root else None
+        sensors = {
+            frame
+            for frame, topics in data_frames(ctx).items()
+            if any(t.type_name in SENSOR_TYPES for t in topics)
+        }
+        holds_sensor = loose is not None and any(ctx.tf_root(f) == loose for f in sensors)
+        if loose is not None and holds_sensor and loose not in ("map", "odom"):
+            fix = (
+                f"'{loose}' is mounted on the vehicle: publish a static transform "
+                f"{base} -> {loose} with the mount's offset (or publish robot_description "
+                "with the joint and run robot_state_publisher)"
+            )
+            return (base, loose), fix, {"parent_guessed_from": "the vehicle's base frame"}
+    fix = (
+        f"publish the transform {t_root} -> {s_root}, or a static transform if the two are "
+        "rigidly attached"
+    )
+    return (t_root, s_root), fix, {}
+
+
 def _suggest(frame: str, known: set[str]) -> list[str]:
     return difflib.get_close_matches(frame, sorted(known), n=3, cutoff=0.5)
 
@@ -388,11 +446,7 @@ def _chain(
             exc.target_root or ctx.tf_root(target),
             exc.source_root or ctx.tf_root(source),
         )
-        hint = (
-            " (localisation / SLAM publishes map -> odom)"
-            if (t_root, s_root) == ("map", "odom")
-            else ""
-        )
+        link, fix, extra = _missing_link(ctx, t_root, s_root)
         return (t_root, s_root), Finding(
             Severity.ERROR,
             "tf.chain_broken",
@@ -402,11 +456,11 @@ def _chain(
                 "source_frame": source,
                 "target_tree_root": t_root,
                 "source_tree_root": s_root,
-                "missing_link": f"{t_root} -> {s_root}",
+                "missing_link": f"{link[0]} -> {link[1]}",
                 "needed_because": why,
+                **extra,
             },
-            f"publish the transform {t_root} -> {s_root}{hint}, or a static transform if the "
-            "two are rigidly attached",
+            fix,
             subject,
         )
     except LookupException as exc:

@@ -1,0 +1,348 @@
+"""The ``usb_cam`` and ``cv_camera`` driver nodes: a camera, video file or stream on the graph.
+
+Both publish, like their ROS 1 namesakes, on private topics of the node:
+``~/image_raw`` (``sensor_msgs/Image``; its ``compressed`` form on
+``~/image_raw/compressed`` through image_transport, encoded only while someone
+subscribes) and ``~/camera_info`` with the same header (frame, stamp). A frame is
+stamped when it is grabbed (the node's clock, before decoding), the camera_info comes
+from ``camera_info_url`` (:func:`~visnav.perception.camera_driver.load_camera_info`).
+At the end of a video file the node logs it, stops its timer and sets ``finished``.
+
+:class:`UsbCamNode` (``usb_cam``) takes usb_cam's parameters: ``video_device``
+(``/dev/video0``; an index, a file or a URL work too), ``image_width`` (640),
+``image_height`` (480), ``pixel_format`` (``mjpeg``; :data:`PIXEL_FORMATS`),
+``io_method`` (``mmap``, ``read`` or ``userptr``: checked, see
+:data:`~visnav.perception.camera_driver.IO_METHODS`), ``framerate`` (30),
+``camera_frame_id`` (``head_camera``), ``camera_name`` (``head_camera``),
+``camera_info_url`` (``""``) and the device controls ``brightness``, ``contrast``,
+``saturation``, ``sharpness``, ``gain``, ``focus`` (-1 leaves the device's value),
+``autofocus`` (false), ``autoexposure`` (true), ``exposure`` (100),
+``auto_white_balance`` (true), ``white_balance`` (4000). Images are ``rgb8`` (``mono8``
+for ``grey``/``mono8``), as usb_cam publishes them.
+
+:class:`CvCameraNode` (``cv_camera``) takes cv_camera's: ``device_id`` (0),
+``device_path`` (``""``, wins over ``device_id``), ``file`` (``""``, wins over both),
+``rate`` (30.0), ``frame_id`` (``camera``), ``image_width`` / ``image_height`` (0: keep
+the source's), ``camera_name`` (``camera``), ``camera_info_url``,
+``rescale_camera_info`` (false) and ``capture_delay`` (0.0 s, subtracted from each
+stamp). Images are ``bgr8``, as cv_camera publishes them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+
+from visnav.graph.node import Node
+from visnav.msgs.time import ns_to_time
+from visnav.msgs.types import CameraInfo, Header
+from visnav.perception.camera_driver import (
+    IO_METHODS,
+    PIXEL_FORMATS,
+    CameraDriverError,
+    CaptureSource,
+    VideoSource,
+    frame_to_image,
+    load_camera_info,
+    parse_source,
+    scale_camera_info,
+)
+from visnav.perception.image_transport import ImageTransportPublisher
+
+__all__ = ["CameraDriverNode", "CvCameraNode", "DriverSettings", "UsbCamNode"]
+
+_QUEUE = 5
+
+
+@dataclass(frozen=True)
+class DriverSettings:
+    """What a driver node opens and publishes (built from its ROS parameters).
+
+    Attributes:
+        source: the device, file or stream.
+        width: requested width (0 keeps the source's).
+        height: requested height (0 keeps the source's).
+        rate: publish (and, for a device, capture) rate in Hz.
+        pixel_format: usb_cam pixel format asked of a device (None keeps its own).
+        encoding: encoding of the published images.
+        frame_id: header frame_id of image and camera_info.
+        camera_name: ``${NAME}`` of the camera_info_url.
+        camera_info_url: where the calibration is.
+        rescale_camera_info: scale a calibration of another size to the images.
+        capture_delay_ns: subtracted from each stamp (known capture latency).
+        controls: OpenCV ``CAP_PROP_*`` -> value, set on a device.
+    """
+
+    source: CaptureSource
+    width: int = 0
+    height: int = 0
+    rate: float = 30.0
+    pixel_format: str | None = None
+    encoding: str = "rgb8"
+    frame_id: str = "camera"
+    camera_name: str = "camera"
+    camera_info_url: str = ""
+    rescale_camera_info: bool = False
+    capture_delay_ns: int = 0
+    controls: dict[int, float] = field(default_factory=dict)
+
+
+def _positive_rate(value: float, name: str, node: str) -> float:
+    if not math.isfinite(value) or value <= 0:
+        msg = f"node {node}: parameter {name} is {value!r}: expected a frame rate > 0 (Hz)"
+        raise CameraDriverError(msg)
+    return value
+
+
+def _size(value: int, name: str, node: str) -> int:
+    if value < 0:
+        msg = f"node {node}: parameter {name} is {value}: expected pixels >= 0 (0 keeps)"
+        raise CameraDriverError(msg)
+    return value
+
+
+class CameraDriverNode(Node):
+    """The common driver: open the source, publish image_raw + camera_info at ``rate``.
+
+    Subclasses read their parameters into :class:`DriverSettings` and call
+    :meth:`start`.
+    """
+
+    finished: bool = False
+
+    def _start_or_destroy(self, settings: Callable[[], DriverSettings]) -> None:
+        """Read the settings and start; on a driver error, leave the graph and re-raise."""
+        try:
+            self.start(settings())
+        except CameraDriverError:
+            Node.destroy_node(self)
+            raise
+
+    def start(self, settings: DriverSettings) -> None:
+        """Open the source and start publishing.
+
+        Raises:
+            CameraDriverError: the source, format or calibration is unusable.
+        """
+        self.settings = settings
+        self.finished = False
+        self.frames = 0
+        self.video = VideoSource(
+            settings.source,
+            width=settings.width,
+            height=settings.height,
+            fps=settings.rate,
+            pixel_format=settings.pixel_format,
+        )
+        try:
+            self._setup(settings)
+        except CameraDriverError:
+            self.video.release()
+            del self.video
+            raise
+
+    def _setup(self, settings: DriverSettings) -> None:
+        log = self.get_logger()
+        if settings.source.is_device:
+            for prop, value in settings.controls.items():
+                if not self.video.set_property(prop, value):
+                    log.warning(f"{settings.source.target}: the device refused control {prop}")
+        elif settings.controls:
+            log.warning(
+                f"device controls are ignored: {settings.source.target} is a "
+                f"{settings.source.kind}, not a camera device"
+            )
+        width, height = self.video.size
+        info, note = load_camera_info(
+            settings.camera_info_url,
+            camera_name=settings.camera_name,
+            width=width,
+            height=height,
+        )
+        if note:
+            log.warning(note)
+        elif (int(info.width), int(info.height)) != (width, height):
+            if settings.rescale_camera_info:
+                log.info(
+                    f"camera_info of {info.width}x{info.height} rescaled to the "
+                    f"{width}x{height} images"
+                )
+                info = scale_camera_info(info, width, height)
+            else:
+                log.warning(
+                    f"camera_info_url {settings.camera_info_url!r} is a {info.width}x"
+                    f"{info.height} calibration but the images are {width}x{height}: "
+                    "calibrate at this size (or set rescale_camera_info for cv_camera)"
+                )
+        self.camera_info = info
+        self.image_transport = ImageTransportPublisher(self, "~/image_raw", _QUEUE)
+        self._info_pub = self.create_publisher(CameraInfo, "~/camera_info", _QUEUE)
+        self._timer = self.create_timer(1.0 / settings.rate, self._tick)
+        log.info(
+            f"publishing {self.resolve_topic_name('~/image_raw')} ({width}x{height} "
+            f"{settings.encoding}, {settings.rate:g} Hz) from {settings.source.kind} "
+            f"{settings.source.target}"
+        )
+
+    def _tick(self) -> None:
+        if self.finished:
+            return
+        frame = self.video.read(self.get_clock().now_ns)
+        if frame is None:
+            self.finished = True
+            self.destroy_timer(self._timer)
+            what = "end of" if self.settings.source.kind == "file" else "no more frames from"
+            self.get_logger().info(
+                f"{what} {self.settings.source.target} after {self.frames} frames"
+            )
+            return
+        stamp = ns_to_time(max(0, frame.stamp_ns - self.settings.capture_delay_ns))
+        header = Header(stamp=stamp, frame_id=self.settings.frame_id)
+        image = frame_to_image(frame.pixels, self.settings.encoding, header)
+        self.image_transport.publish(image)
+        info = self.camera_info
+        self._info_pub.publish(
+            CameraInfo(
+                header=header,
+                height=info.height,
+                width=info.width,
+                distortion_model=info.distortion_model,
+                d=info.d,
+                k=info.k,
+                r=info.r,
+                p=info.p,
+                binning_x=info.binning_x,
+                binning_y=info.binning_y,
+                roi=info.roi,
+            )
+        )
+        self.frames += 1
+
+    def destroy_node(self) -> None:
+        """Close the source, then the node."""
+        video = getattr(self, "video", None)
+        if video is not None:
+            video.release()
+        super().destroy_node()
+
+
+_USB_CONTROLS: dict[str, tuple[int, float]] = {
+    "brightness": (cv2.CAP_PROP_BRIGHTNESS, -1),
+    "contrast": (cv2.CAP_PROP_CONTRAST, -1),
+    "saturation": (cv2.CAP_PROP_SATURATION, -1),
+    "sharpness": (cv2.CAP_PROP_SHARPNESS, -1),
+    "gain": (cv2.CAP_PROP_GAIN, -1),
+    "focus": (cv2.CAP_PROP_FOCUS, -1),
+}
+
+
+class UsbCamNode(CameraDriverNode):
+    """usb_cam: a V4L2 camera (or a file / stream) with usb_cam's parameters.
+
+    Args:
+        name: node name (default ``usb_cam``).
+        **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
+
+    Raises:
+        CameraDriverError: a parameter out of range, a missing device or a pixel format
+            the device does not offer.
+    """
+
+    def __init__(self, name: str = "usb_cam", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        self._start_or_destroy(self._settings)
+
+    def _settings(self) -> DriverSettings:
+        fqn = self.get_fully_qualified_name()
+        p = self.declare_parameter
+        device = str(p("video_device", "/dev/video0").value)
+        pixel_format = str(p("pixel_format", "mjpeg").value)
+        io_method = str(p("io_method", "mmap").value)
+        if pixel_format not in PIXEL_FORMATS:
+            msg = (
+                f"node {fqn}: pixel_format {pixel_format!r} is unknown: expected one of "
+                f"{', '.join(PIXEL_FORMATS)}"
+            )
+            raise CameraDriverError(msg)
+        if io_method not in IO_METHODS:
+            msg = f"node {fqn}: io_method {io_method!r}: expected one of {', '.join(IO_METHODS)}"
+            raise CameraDriverError(msg)
+        controls: dict[int, float] = {}
+        for key, (prop, unset) in _USB_CONTROLS.items():
+            value = float(p(key, int(unset)).value)
+            if value != unset:
+                controls[prop] = value
+        autofocus = bool(p("autofocus", value=False).value)
+        autoexposure = bool(p("autoexposure", value=True).value)
+        exposure = float(p("exposure", 100).value)
+        auto_wb = bool(p("auto_white_balance", value=True).value)
+        white_balance = float(p("white_balance", 4000).value)
+        if autofocus:
+            controls[cv2.CAP_PROP_AUTOFOCUS] = 1.0
+        if not autoexposure:  # V4L2: 1 = manual, 3 = aperture priority (auto)
+            controls[cv2.CAP_PROP_AUTO_EXPOSURE] = 1.0
+            controls[cv2.CAP_PROP_EXPOSURE] = exposure
+        if not auto_wb:
+            controls[cv2.CAP_PROP_AUTO_WB] = 0.0
+            controls[cv2.CAP_PROP_WB_TEMPERATURE] = white_balance
+        source = parse_source(device)
+        return DriverSettings(
+            source=source,
+            width=_size(int(p("image_width", 640).value), "image_width", fqn),
+            height=_size(int(p("image_height", 480).value), "image_height", fqn),
+            rate=_positive_rate(float(p("framerate", 30).value), "framerate", fqn),
+            pixel_format=pixel_format if source.is_device else None,
+            encoding="mono8" if PIXEL_FORMATS[pixel_format] == "GREY" else "rgb8",
+            frame_id=str(p("camera_frame_id", "head_camera").value),
+            camera_name=str(p("camera_name", "head_camera").value),
+            camera_info_url=str(p("camera_info_url", "").value),
+            controls=controls,
+        )
+
+
+class CvCameraNode(CameraDriverNode):
+    """cv_camera: OpenCV VideoCapture with cv_camera's parameters.
+
+    Args:
+        name: node name (default ``cv_camera``).
+        **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
+
+    Raises:
+        CameraDriverError: a parameter out of range or a source that does not open.
+    """
+
+    def __init__(self, name: str = "cv_camera", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        self._start_or_destroy(self._settings)
+
+    def _settings(self) -> DriverSettings:
+        fqn = self.get_fully_qualified_name()
+        p = self.declare_parameter
+        device_id = int(p("device_id", 0).value)
+        device_path = str(p("device_path", "").value)
+        file = str(p("file", "").value)
+        if file:
+            source = parse_source(file if "://" in file else f"file://{file}")
+        else:
+            source = parse_source(device_path or device_id)
+        delay = float(p("capture_delay", 0.0).value)
+        if not np.isfinite(delay) or delay < 0:
+            msg = f"node {fqn}: capture_delay is {delay!r}: expected seconds >= 0"
+            raise CameraDriverError(msg)
+        return DriverSettings(
+            source=source,
+            width=_size(int(p("image_width", 0).value), "image_width", fqn),
+            height=_size(int(p("image_height", 0).value), "image_height", fqn),
+            rate=_positive_rate(float(p("rate", 30.0).value), "rate", fqn),
+            encoding="bgr8",
+            frame_id=str(p("frame_id", "camera").value),
+            camera_name=str(p("camera_name", "camera").value),
+            camera_info_url=str(p("camera_info_url", "").value),
+            rescale_camera_info=bool(p("rescale_camera_info", value=False).value),
+            capture_delay_ns=round(delay * 1e9),
+        )

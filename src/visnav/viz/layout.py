@@ -1,0 +1,35 @@
+"""The viewer's default layout: the 3D view with every camera's images beside it.
+
+RViz opens a 3D view with its Image displays docked to the side; :func:`default_blueprint`
+builds the Rerun blueprint for that: the 3D view of the fixed frame (two thirds of the
+width) and, to its right, one 2D view per camera entity (``world/cameras/<ns>``: its
+images, depth and pinhole), stacked. The sink sends it again when a camera appears.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+__all__ = ["default_blueprint"]
+
+
+def default_blueprint(root: str, cameras: Sequence[str]) -> Any:
+    """The blueprint: 3D view of ``root``, the ``cameras`` (entity paths) beside it.
+
+    Args:
+        root: the fixed frame's entity (``world``).
+        cameras: camera entities, in the order they appeared.
+    """
+    import rerun.blueprint as rrb  # noqa: PLC0415 (the optional SDK, like visnav.viz._rerun)
+
+    view3d = rrb.Spatial3DView(origin=f"/{root}", name="3D")
+    if not cameras:
+        return rrb.Blueprint(view3d, collapse_panels=False)
+    images = [
+        rrb.Spatial2DView(origin=f"/{camera}", name=camera.rsplit("/", 1)[-1]) for camera in cameras
+    ]
+    return rrb.Blueprint(
+        rrb.Horizontal(view3d, rrb.Vertical(*images), column_shares=[2, 1]),
+        collapse_panels=False,
+    )
