@@ -1,0 +1,460 @@
+"""A ROS 1 node without rospy: slave XML-RPC API, TCPROS server, publications, subscriptions.
+
+The slave API answers what ``rosnode`` and other nodes call: ``getBusInfo``, ``getBusStats``,
+``getPid``, ``getSubscriptions``, ``getPublications``, ``getMasterUri``, ``requestTopic``,
+``publisherUpdate``, ``paramUpdate`` and ``shutdown``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+import os
+import socket
+import socketserver
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
+
+from visnav.bridge.connections import (
+    ConnectionStats,
+    InConnection,
+    OutConnection,
+    Parts,
+    md5_mismatch,
+)
+from visnav.bridge.errors import BridgeError, TcprosError
+from visnav.bridge.master_api import MasterClient, bind_address
+from visnav.bridge.tcpros import encode_header, read_header
+from visnav.bridge.typemap import Ros1Type, rosout_type
+
+__all__ = ["Ros1Node", "ThreadingXmlRpcServer"]
+
+_log = logging.getLogger("visnav.bridge")
+
+
+class _QuietHandler(SimpleXMLRPCRequestHandler):
+    def log_message(self, format: str, *args: Any) -> None:
+        _log.debug("xmlrpc: " + format, *args)
+
+
+class ThreadingXmlRpcServer(socketserver.ThreadingMixIn, SimpleXMLRPCServer):
+    """An XML-RPC server answering each request on its own thread."""
+
+    daemon_threads = True
+    allow_reuse_address = True
+
+    def __init__(self, addr: tuple[str, int]) -> None:
+        super().__init__(addr, requestHandler=_QuietHandler, logRequests=False, allow_none=True)
+
+
+@dataclass
+class _Publication:
+    topic: str
+    rtype: Ros1Type
+    latch: bool
+    conns: list[OutConnection] = field(default_factory=list)
+    last: Parts | None = None
+    messages: int = 0
+
+
+@dataclass
+class _Subscription:
+    topic: str
+    rtype: Ros1Type
+    callback: Callable[[bytearray], None]
+    conns: dict[str, InConnection] = field(default_factory=dict)
+
+
+class Ros1Node:
+    """A node of a ROS 1 graph.
+
+    Args:
+        name: the node name (``/visnav_bridge``).
+        master_uri: the master's URI.
+        host: the address peers use to reach this node.
+        on_shutdown: called when a peer calls ``shutdown`` (``rosnode kill``).
+        on_demand: called with a topic when its number of ROS 1 subscribers changes.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        master_uri: str,
+        host: str,
+        on_shutdown: Callable[[str], None] | None = None,
+        on_demand: Callable[[str], None] | None = None,
+    ) -> None:
+        self.name = name if name.startswith("/") else f"/{name}"
+        self.host = host
+        self.master = MasterClient(master_uri, self.name)
+        self._on_shutdown = on_shutdown
+        self._on_demand = on_demand
+        self._lock = threading.RLock()
+        self._pubs: dict[str, _Publication] = {}
+        self._subs: dict[str, _Subscription] = {}
+        self._ids = itertools.count(1)
+        self._closed = False
+        bind = bind_address(host)
+        self._xmlrpc = ThreadingXmlRpcServer((bind, 0))
+        for method in (
+            "getBusStats",
+            "getBusInfo",
+            "getMasterUri",
+            "shutdown",
+            "getPid",
+            "getSubscriptions",
+            "getPublications",
+            "paramUpdate",
+            "publisherUpdate",
+            "requestTopic",
+        ):
+            self._xmlrpc.register_function(getattr(self, f"_api_{method}"), method)
+        self.uri = f"http://{host}:{self._xmlrpc.server_address[1]}/"
+        self._tcp = socket.create_server((bind, 0))
+        self.tcp_port = int(self._tcp.getsockname()[1])
+        self._threads = [
+            threading.Thread(
+                target=self._xmlrpc.serve_forever, args=(0.1,), name="ros1-xmlrpc", daemon=True
+            ),
+            threading.Thread(target=self._accept_loop, name="ros1-tcpros", daemon=True),
+        ]
+
+    def start(self) -> None:
+        """Start serving and advertise ``/rosout`` as every rospy node does.
+
+        The ``/rosout`` registration makes the node visible to ``rosnode list`` even while
+        it bridges no topic (the master lists nodes by their registrations).
+
+        Raises:
+            MasterUnreachableError: no master.
+        """
+        for t in self._threads:
+            t.start()
+        self.advertise("/rosout", rosout_type())
+
+    # ------------------------------------------------------------------ topics
+    def advertise(self, topic: str, rtype: Ros1Type, *, latch: bool = False) -> None:
+        """Register a publication with the master.
+
+        Raises:
+            MasterUnreachableError: no master.
+            MasterError: the master refused.
+        """
+        with self._lock:
+            if topic in self._pubs:
+                return
+            self._pubs[topic] = _Publication(topic, rtype, latch)
+        try:
+            self.master.register_publisher(topic, rtype.ros1_name, self.uri)
+        except BridgeError:
+            with self._lock:
+                self._pubs.pop(topic, None)
+            raise
+
+    def unadvertise(self, topic: str) -> None:
+        """Unregister a publication and close its connections."""
+        with self._lock:
+            pub = self._pubs.pop(topic, None)
+        if pub is None:
+            return
+        for conn in list(pub.conns):
+            conn.close()
+        with contextlib.suppress(BridgeError):
+            self.master.unregister_publisher(topic, self.uri)
+
+    def publish(self, topic: str, payload: bytes | memoryview, *, seq: int | None = None) -> None:
+        """Send one message (ROS 1 bytes) to every subscriber of ``topic``.
+
+        Args:
+            topic: the topic.
+            payload: the message's ROS 1 bytes (not copied: do not change them afterwards).
+            seq: when given, sent in place of the first 4 bytes (a leading Header's ``seq``).
+        """
+        parts: Parts = (
+            (payload,)
+            if seq is None
+            else ((seq & 0xFFFFFFFF).to_bytes(4, "little"), memoryview(payload)[4:])
+        )
+        with self._lock:
+            pub = self._pubs.get(topic)
+            if pub is None:
+                return
+            pub.messages += 1
+            if pub.latch:
+                pub.last = parts
+            conns = list(pub.conns)
+        for conn in conns:
+            conn.push(parts)
+
+    def subscriber_count(self, topic: str) -> int:
+        """Number of ROS 1 subscribers connected to our publication of ``topic``."""
+        with self._lock:
+            pub = self._pubs.get(topic)
+            return 0 if pub is None else len(pub.conns)
+
+    def subscribe(self, topic: str, rtype: Ros1Type, callback: Callable[[bytearray], None]) -> None:
+        """Register a subscription and connect to the topic's publishers.
+
+        ``callback`` gets each message's ROS 1 bytes on the connection's thread.
+
+        Raises:
+            MasterUnreachableError: no master.
+            MasterError: the master refused.
+        """
+        with self._lock:
+            if topic in self._subs:
+                return
+            self._subs[topic] = _Subscription(topic, rtype, callback)
+        try:
+            uris = self.master.register_subscriber(topic, rtype.ros1_name, self.uri)
+        except BridgeError:
+            with self._lock:
+                self._subs.pop(topic, None)
+            raise
+        self._update_publishers(topic, uris)
+
+    def unsubscribe(self, topic: str) -> None:
+        """Unregister a subscription and close its connections."""
+        with self._lock:
+            sub = self._subs.pop(topic, None)
+        if sub is None:
+            return
+        for conn in list(sub.conns.values()):
+            conn.close()
+        with contextlib.suppress(BridgeError):
+            self.master.unregister_subscriber(topic, self.uri)
+
+    def publisher_uris(self, topic: str) -> list[str]:
+        """Slave URIs of the ROS 1 publishers we read ``topic`` from."""
+        with self._lock:
+            sub = self._subs.get(topic)
+            return [] if sub is None else sorted(sub.conns)
+
+    def _update_publishers(self, topic: str, uris: list[str]) -> None:
+        with self._lock:
+            sub = self._subs.get(topic)
+            if sub is None or self._closed:
+                return
+            wanted = {u for u in uris if u != self.uri}
+            gone = [c for u, c in sub.conns.items() if u not in wanted]
+            new: list[InConnection] = []
+            for uri in sorted(wanted - set(sub.conns)):
+                stats = ConnectionStats(next(self._ids), uri, "i", topic, uri)
+                conn = InConnection(
+                    topic,
+                    sub.rtype,
+                    uri,
+                    caller_id=self.name,
+                    stats=stats,
+                    on_message=sub.callback,
+                    on_close=self._in_closed,
+                )
+                sub.conns[uri] = conn
+                new.append(conn)
+        for conn in gone:
+            conn.close()
+        for conn in new:
+            conn.thread.start()
+
+    def _in_closed(self, conn: InConnection) -> None:
+        with self._lock:
+            sub = self._subs.get(conn.topic)
+            if sub is not None and sub.conns.get(conn.publisher_uri) is conn:
+                del sub.conns[conn.publisher_uri]
+
+    # ------------------------------------------------------------------ TCPROS server
+    def _accept_loop(self) -> None:
+        while not self._closed:
+            try:
+                sock, addr = self._tcp.accept()
+            except OSError:
+                return
+            threading.Thread(
+                target=self._serve_subscriber,
+                args=(sock, f"{addr[0]}:{addr[1]}"),
+                name="tcpros-out",
+                daemon=True,
+            ).start()
+
+    def _refuse(self, sock: socket.socket, text: str, peer: str) -> None:
+        _log.warning("refused TCPROS connection from %s: %s", peer, text)
+        with contextlib.suppress(OSError):
+            sock.sendall(encode_header({"error": text}))
+        sock.close()
+
+    def _serve_subscriber(self, sock: socket.socket, addr: str) -> None:
+        try:
+            sock.settimeout(10.0)
+            header = read_header(sock)
+        except (TcprosError, OSError) as exc:
+            _log.warning("dropped TCPROS connection from %s: %s", addr, exc)
+            sock.close()
+            return
+        missing = [k for k in ("topic", "md5sum", "callerid") if k not in header]
+        if missing:
+            if "service" in header:
+                self._refuse(sock, "visnav's ROS 1 bridge serves no services", addr)
+            else:
+                text = f"header from {addr} lacks {', '.join(missing)}"
+                self._refuse(sock, text, addr)
+            return
+        topic, peer = header["topic"], header["callerid"]
+        with self._lock:
+            pub = self._pubs.get(topic)
+        if pub is None:
+            self._refuse(sock, f"{self.name} does not publish {topic}", peer)
+            return
+        refusal = md5_mismatch(topic, pub.rtype, header.get("type", "?"), header["md5sum"], peer)
+        if refusal:
+            self._refuse(sock, refusal, peer)
+            return
+        if header.get("tcp_nodelay") == "1":
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        try:
+            sock.sendall(
+                encode_header(
+                    {
+                        "callerid": self.name,
+                        "topic": topic,
+                        "type": pub.rtype.ros1_name,
+                        "md5sum": pub.rtype.md5sum,
+                        "message_definition": pub.rtype.definition,
+                        "latching": "1" if pub.latch else "0",
+                    }
+                )
+            )
+            sock.settimeout(None)
+        except OSError as exc:
+            _log.warning("dropped TCPROS connection from %s: %s", peer, exc)
+            sock.close()
+            return
+        stats = ConnectionStats(next(self._ids), peer, "o", topic, addr)
+        conn = OutConnection(sock, stats, on_close=self._out_closed)
+        with self._lock:
+            pub.conns.append(conn)
+            if pub.last is not None:
+                conn.push(pub.last)
+        if self._on_demand is not None:
+            self._on_demand(topic)
+        conn.run()
+
+    def _out_closed(self, conn: OutConnection) -> None:
+        with self._lock:
+            pub = self._pubs.get(conn.stats.topic)
+            if pub is not None and conn in pub.conns:
+                pub.conns.remove(conn)
+        if self._on_demand is not None and not self._closed:
+            self._on_demand(conn.stats.topic)
+
+    # ------------------------------------------------------------------ slave API
+    def _all_stats(self) -> list[ConnectionStats]:
+        with self._lock:
+            out = [c.stats for p in self._pubs.values() for c in p.conns]
+            out += [c.stats for s in self._subs.values() for c in s.conns.values()]
+        return out
+
+    def _api_getBusInfo(self, caller_id: str) -> list[Any]:  # noqa: N802 - ROS API name
+        info = [
+            [
+                s.conn_id,
+                s.peer,
+                s.direction,
+                "TCPROS",
+                s.topic,
+                s.connected,
+                f"TCPROS connection on port {self.tcp_port} to [{s.endpoint}]",
+            ]
+            for s in self._all_stats()
+        ]
+        return [1, "bus info", info]
+
+    def _api_getBusStats(self, caller_id: str) -> list[Any]:  # noqa: N802
+        with self._lock:
+            pub_stats = [
+                [
+                    p.topic,
+                    sum(c.stats.bytes for c in p.conns),
+                    [[c.stats.conn_id, c.stats.bytes, c.stats.messages, True] for c in p.conns],
+                ]
+                for p in self._pubs.values()
+            ]
+            sub_stats = [
+                [
+                    s.topic,
+                    [
+                        [c.stats.conn_id, c.stats.bytes, c.stats.dropped, True]
+                        for c in s.conns.values()
+                    ],
+                ]
+                for s in self._subs.values()
+            ]
+        return [1, "", [pub_stats, sub_stats, []]]
+
+    def _api_getMasterUri(self, caller_id: str) -> list[Any]:  # noqa: N802
+        return [1, "", self.master.uri]
+
+    def _api_shutdown(self, caller_id: str, msg: str = "") -> list[Any]:
+        _log.warning("shutdown requested by %s: %s", caller_id, msg)
+        if self._on_shutdown is not None:
+            threading.Thread(
+                target=self._on_shutdown, args=(f"{caller_id}: {msg}",), daemon=True
+            ).start()
+        return [1, "shutdown", 0]
+
+    def _api_getPid(self, caller_id: str) -> list[Any]:  # noqa: N802
+        return [1, "", os.getpid()]
+
+    def _api_getSubscriptions(self, caller_id: str) -> list[Any]:  # noqa: N802
+        with self._lock:
+            return [1, "subscriptions", [[t, s.rtype.ros1_name] for t, s in self._subs.items()]]
+
+    def _api_getPublications(self, caller_id: str) -> list[Any]:  # noqa: N802
+        with self._lock:
+            return [1, "publications", [[t, p.rtype.ros1_name] for t, p in self._pubs.items()]]
+
+    def _api_paramUpdate(self, caller_id: str, key: str, value: Any) -> list[Any]:  # noqa: N802
+        return [1, "", 0]
+
+    def _api_publisherUpdate(  # noqa: N802
+        self, caller_id: str, topic: str, publishers: list[str]
+    ) -> list[Any]:
+        threading.Thread(
+            target=self._update_publishers, args=(topic, list(publishers)), daemon=True
+        ).start()
+        return [1, "", 0]
+
+    def _api_requestTopic(  # noqa: N802
+        self, caller_id: str, topic: str, protocols: list[Any]
+    ) -> list[Any]:
+        with self._lock:
+            if topic not in self._pubs:
+                return [-1, f"{self.name} does not publish {topic}", []]
+        if not any(isinstance(p, list) and p and p[0] == "TCPROS" for p in protocols):
+            return [0, "no supported protocol: visnav speaks TCPROS only", []]
+        return [1, f"ready on {self.host}:{self.tcp_port}", ["TCPROS", self.host, self.tcp_port]]
+
+    # ------------------------------------------------------------------ lifecycle
+    def close(self) -> None:
+        """Unregister everything from the master and close every connection (idempotent)."""
+        with self._lock:
+            if self._closed:
+                return
+            topics_out = list(self._pubs)
+            topics_in = list(self._subs)
+        for topic in topics_out:
+            self.unadvertise(topic)
+        for topic in topics_in:
+            self.unsubscribe(topic)
+        with self._lock:
+            self._closed = True
+        with contextlib.suppress(OSError):
+            self._tcp.shutdown(socket.SHUT_RDWR)
+        self._tcp.close()
+        if self._threads[0].is_alive():
+            self._xmlrpc.shutdown()
+        self._xmlrpc.server_close()
