@@ -145,13 +145,34 @@ def test_each_message_once_when_one_input_is_faster() -> None:
     assert out == [(0.0, 0.02), (0.5, 0.51), (1.0, 1.04), (1.5, 1.49)]
 
 
-def test_backwards_stamp_dropped_with_one_warning(caplog: pytest.LogCaptureFixture) -> None:
+@pytest.mark.parametrize(
+    "arrival",
+    [
+        [(0, 1.000), (1, 1.040), (0, 1.030), (1, 1.005), (0, 1.060), (1, 1.100)],
+        [(0, 1.000), (0, 1.030), (0, 1.060), (1, 1.040), (1, 1.005), (1, 1.100)],
+        [(1, 1.040), (1, 1.005), (1, 1.100), (0, 1.000), (0, 1.030), (0, 1.060)],
+    ],
+)
+def test_backwards_stamp_kept_with_one_warning_as_roscpp(
+    arrival: list[tuple[int, float]], caplog: pytest.LogCaptureFixture
+) -> None:
+    # Issue 18 item 2: roscpp (Noetic) queues the out-of-order 1.005 and emits
+    # (1.030, 1.040) then (1.060, 1.100); dropping it loses the second set.
     with caplog.at_level(logging.DEBUG, logger="visnav.message_filters"):
-        out, _ = run([(0, 0), (0, 10), (0, 5), (0, 4), (1, 1), (1, 9)])
-    assert out == [(0, 1)]  # 5 and 4 on A were dropped; 9 waits for A's next
+        out, _ = run(arrival, queue_size=5)
+    assert out == [(1.030, 1.040), (1.060, 1.100)]
     warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warnings) == 1
-    assert "input 0 stamp went backwards (10000000000 ns -> 5000000000 ns)" in warnings[0].message
+    assert "input 1 stamp went backwards (1040000000 ns -> 1005000000 ns)" in warnings[0].message
+    assert "message kept" in warnings[0].message
+
+
+def test_backwards_stamp_warned_once_then_debug(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.DEBUG, logger="visnav.message_filters"):
+        run([(0, 0), (0, 10), (0, 5), (0, 4)])
+    warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1
+    assert "(10000000000 ns -> 5000000000 ns)" in warnings[0].message
     assert any(
         "-> 4000000000 ns" in r.message for r in caplog.records if r.levelno == logging.DEBUG
     )

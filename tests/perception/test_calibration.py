@@ -207,7 +207,10 @@ def test_board_not_found_warns_and_too_few_views(caplog: pytest.LogCaptureFixtur
     with caplog.at_level(logging.WARNING), pytest.raises(CalibrationError) as info:
         calibrate_from_images(images, PATTERN, SQUARE)
     assert "blank.png: chessboard 9x6 not found; image skipped" in caplog.text
-    assert "only 4 of 5 images show the full 9x6 chessboard: at least 5 views" in str(info.value)
+    assert (
+        "only 4 of 5 images show the full 9x6 chessboard (1 rejected: chessboard 9x6 not "
+        "found): at least 5 views" in str(info.value)
+    )
 
 
 def test_wrong_pattern_finds_nothing() -> None:
@@ -468,7 +471,7 @@ def test_yaml_defaults_like_ros(tmp_path: Path, caplog: pytest.LogCaptureFixture
         (lambda t: t.replace("image_height: 480", "image_height: tall"), "image_height is 'tall'"),
         (lambda t: t.replace("data: [0.101203", "data: [abc"), "holds a non-number"),
         (lambda t: "just a string", "expected a YAML mapping"),
-        (lambda t: "a: [", "not valid YAML"),
+        (lambda t: "a: [", "does not parse as YAML"),
     ],
 )
 def test_yaml_errors_name_file_and_field(
@@ -482,7 +485,7 @@ def test_yaml_errors_name_file_and_field(
 
 
 def test_unreadable_yaml(tmp_path: Path) -> None:
-    with pytest.raises(CalibrationError, match="cannot read the calibration file"):
+    with pytest.raises(CalibrationError, match="the camera_info YAML does not exist"):
         read_camera_info_yaml(tmp_path / "missing.yaml")
     with pytest.raises(CalibrationError, match="INI calibration files are not supported"):
         read_camera_info_yaml(tmp_path / "cal.ini")

@@ -498,8 +498,13 @@ def test_all_frames_as_string_and_frames(robot: Buffer) -> None:
     assert robot.has_frame("map")
     assert not robot.has_frame("mapp")
     assert robot.get_parent("map") is None
-    robot.clear()
-    assert robot.all_frames_as_string() == ""
+    robot.clear()  # as tf2's BufferCore::clear: dynamic data dropped, static kept
+    assert robot.all_frames_as_string().splitlines() == [
+        "Frame camera exists with parent base_link.",
+        "Frame camera_optical exists with parent camera.",
+    ]
+    assert robot.can_transform("base_link", "camera_optical")
+    assert not robot.can_transform("map", "base_link")
     assert robot.has_frame("map")
 
 

@@ -141,3 +141,33 @@ def test_tf_static_argument_errors(domain: int) -> None:
     )
     assert out.returncode == 1
     assert out.stderr.startswith("error: tf static got 4 values: expected 'x y z yaw pitch roll")
+
+
+def test_listener_clears_dynamic_tf_when_ros_time_jumps_back(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # tf2_ros: "Detected jump back in time of X s. Clearing TF buffer." (bag loop, sim reset);
+    # static transforms survive (tf2's StaticCache ignores clear()).
+    with Context(transport="local") as ctx:
+        pub_node = Node("robot", context=ctx)
+        listener_node = Node("listener", context=ctx, use_sim_time=True)
+        clock = listener_node.get_clock()
+        buffer = Buffer()
+        TransformListener(buffer, listener_node)
+        StaticTransformBroadcaster(pub_node).send_transform(_tf("base_link", "camera", 0.2, 0))
+        br = TransformBroadcaster(pub_node)
+        for k in range(1, 4):
+            clock.set_sim_time_ns(k * 1_000_000_000)
+            br.send_transform(_tf("odom", "base_link", float(k), k * 1_000_000_000))
+            ctx.spin_some()
+        assert buffer.can_transform("odom", "camera", 2_500_000_000)
+        clock.set_sim_time_ns(500_000_000)  # the bag starts over
+        br.send_transform(_tf("odom", "base_link", 9.0, 500_000_000))
+        ctx.spin_some()
+        assert "Detected jump back in time of 2.5" in caplog.text
+        assert "Clearing TF buffer" in caplog.text
+        # Only the sample after the jump is left: the old 1..3 s history is gone.
+        assert not buffer.can_transform("odom", "base_link", 2_500_000_000)
+        moved = buffer.lookup_transform("odom", "camera")
+        assert moved.transform.translation.x == pytest.approx(9.2)
+        assert buffer.lookup_transform("base_link", "camera").transform.translation.x == 0.2

@@ -45,9 +45,10 @@ give different sets on the same input.
   or a larger ``age_penalty``).
 * Disorder. ``ApproximateTimeSynchronizer`` keys its queues by stamp, so it accepts
   messages in any order per input (a repeated stamp replaces the queued message);
-  it logs the first backwards stamp per input. ``ApproximateTime`` requires
-  non-decreasing stamps per input and drops (or, with ``reset=True``, restarts
-  the input on) a message whose stamp goes backwards, with a warning.
+  it logs the first backwards stamp per input. ``ApproximateTime`` expects
+  non-decreasing stamps per input; like roscpp it keeps a message whose stamp
+  goes backwards (queued in arrival order, warned once per input), or with
+  ``reset=True`` restarts that input's queue.
 * Queue. ``queue_size`` counts distinct stamps per input for the former and
   waiting messages per input for the latter (roscpp recommends at least 2).
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
@@ -11,6 +12,7 @@ from visnav.msgs.time import NS_PER_S
 from visnav.msgs.types import Time
 
 __all__ = [
+    "BackJumpDetector",
     "FilterLike",
     "LoggerLike",
     "StampedLike",
@@ -18,6 +20,7 @@ __all__ = [
     "default_logger",
     "input_names",
     "message_stamp_ns",
+    "resolve_clock",
     "rospy_duration_ns",
     "seconds_to_ns",
     "to_ns",
@@ -31,6 +34,9 @@ class LoggerLike(Protocol):
 
     def warning(self, msg: str, /) -> None:
         """Log a warning."""
+
+    def info(self, msg: str, /) -> None:
+        """Log an informational message."""
 
     def debug(self, msg: str, /) -> None:
         """Log a debug message."""
@@ -148,3 +154,44 @@ def input_names(fs: Sequence[object]) -> list[str]:
         topic = getattr(f, "topic", None)
         names.append(f"input {i} ({topic})" if isinstance(topic, str) else f"input {i}")
     return names
+
+
+def resolve_clock(
+    clock: Callable[[], int] | None, inputs: Sequence[object] = ()
+) -> Callable[[], int]:
+    """Return the "now" in int nanoseconds a filter uses (ROS time, as rospy's ``Time.now()``).
+
+    ``clock`` when given; else the clock of the node of the first input that has one
+    (a :class:`~visnav.message_filters.Subscriber` knows its node, whose clock follows
+    ``/clock`` under ``use_sim_time``); else wall-clock ``time.time_ns``.
+    """
+    if clock is not None:
+        return clock
+    for f in inputs:
+        get_clock = getattr(getattr(f, "node", None), "get_clock", None)
+        if callable(get_clock):
+            now_ns = getattr(get_clock(), "now_ns", None)
+            if callable(now_ns):
+                return now_ns  # type: ignore[no-any-return]
+    return time.time_ns
+
+
+class BackJumpDetector:
+    """Tells when the clock went backwards since the previous call (a bag loop, a sim reset).
+
+    Args:
+        clock: int nanoseconds "now".
+    """
+
+    __slots__ = ("_clock", "_last")
+
+    def __init__(self, clock: Callable[[], int]) -> None:
+        self._clock = clock
+        self._last: int | None = None
+
+    def jumped_back(self) -> int:
+        """Read the clock; return by how many ns it went back since the last call (0: not)."""
+        now = int(self._clock())
+        last = self._last
+        self._last = now
+        return last - now if last is not None and now < last else 0

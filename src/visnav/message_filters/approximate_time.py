@@ -12,7 +12,8 @@ parameter, the best match among the queued messages:
   contiguous to the previous one, later sets being penalised by a factor
   ``1 + age_penalty`` so that a set can be output before all candidates are seen;
 * the output depends only on the stamps, not on the arrival interleaving across
-  inputs (messages must arrive in stamp order on each input).
+  inputs (messages should arrive in stamp order on each input; one that does not
+  is kept with a warning, as roscpp does).
 
 How it works: once every input has a message, the latest of the queue heads is
 the *pivot*; the heads form the first *candidate*. The earliest head is then
@@ -78,12 +79,13 @@ class ApproximateTime(SimpleFilter):
             a jump back of the receive clock under simulated time).
         logger: where warnings go (default the ``visnav.message_filters`` logger).
 
-    Messages without ``header.stamp`` and, unless ``reset``, messages whose stamp
-    is older than the previous one on the same input are dropped with a warning
-    (the policy assumes per-input stamp order; roscpp only warns and keeps them,
-    which can make sets cross). Messages arriving closer than their input's
-    lower bound are kept with a warning, as in roscpp. Warnings are logged once
-    per input; later occurrences go to debug.
+    Messages without ``header.stamp`` are dropped with a warning. A message whose
+    stamp is older than the previous one on the same input is kept and queued
+    in arrival order with a warning, as roscpp (Noetic) does (the policy assumes
+    per-input stamp order, so such sets may cross); with ``reset`` the input's
+    queue is cleared instead. Messages arriving closer than their input's lower
+    bound are kept with a warning, as in roscpp. Warnings are logged once per
+    input; later occurrences go to debug.
 
     Raises:
         MessageFilterError: fewer than two inputs, or a parameter out of range.
@@ -226,20 +228,21 @@ class ApproximateTime(SimpleFilter):
         last = self._last[i]
         if last is not None:
             if stamp < last:
-                if not self.reset:
+                if self.reset:
+                    self._logger.warning(
+                        f"ApproximateTime: {self._names[i]} jumped back in time ({last} ns -> "
+                        f"{stamp} ns); clearing its queue"
+                    )
+                    self._clear_input(i)
+                else:
+                    # roscpp (Noetic) warns once and keeps the message in the queue.
                     self._warn(
                         self._warned_order,
                         i,
                         f"ApproximateTime: {self._names[i]} stamp went backwards ({last} ns -> "
-                        f"{stamp} ns); message dropped. Stamps must not decrease per input "
-                        "(pass reset=True to restart the input's queue instead)",
+                        f"{stamp} ns); message kept, as roscpp does, but sets may cross. "
+                        "Pass reset=True to restart the input's queue on a jump back instead",
                     )
-                    return
-                self._logger.warning(
-                    f"ApproximateTime: {self._names[i]} jumped back in time ({last} ns -> "
-                    f"{stamp} ns); clearing its queue"
-                )
-                self._clear_input(i)
             elif stamp - last < self._bounds[i]:
                 self._warn(
                     self._warned_bound,

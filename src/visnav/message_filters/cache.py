@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import bisect
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
 from visnav.message_filters._common import (
+    BackJumpDetector,
     FilterLike,
     LoggerLike,
     default_logger,
     message_stamp_ns,
+    resolve_clock,
     to_ns,
 )
 from visnav.message_filters.errors import MessageFilterError
@@ -37,8 +38,11 @@ class Cache(SimpleFilter):
         cache_size: how many messages to keep (>= 1).
         allow_headerless: store messages without ``header.stamp`` under the
             current time of ``clock`` instead of dropping them with a warning.
-        clock: nanoseconds "now" for headerless messages (e.g.
-            ``node.get_clock().now_ns``); default wall-clock ``time.time_ns``.
+        clock: int nanoseconds ROS time: stamps headerless messages, and when it
+            goes backwards (a bag loop, a simulator reset) the cache is emptied
+            before the new message is stored, as tf2_ros and rospy's synchronizers
+            do with their buffers (rospy's Cache keeps old messages). Default: the
+            input Subscriber's node clock, else wall-clock ``time.time_ns``.
         logger: where warnings go (default the ``visnav.message_filters`` logger).
 
     Raises:
@@ -60,7 +64,8 @@ class Cache(SimpleFilter):
             raise MessageFilterError(text)
         self.cache_size = cache_size
         self.allow_headerless = allow_headerless
-        self._clock = clock if clock is not None else time.time_ns
+        self._clock = resolve_clock(clock, [f] if f is not None else [])
+        self._jump = BackJumpDetector(self._clock)
         self._logger: LoggerLike = logger if logger is not None else default_logger()
         self._lock = threading.Lock()
         self._times: list[int] = []
@@ -89,6 +94,14 @@ class Cache(SimpleFilter):
                 return
             stamp = int(self._clock())
         with self._lock:
+            back = self._jump.jumped_back()
+            if back:
+                self._logger.info(
+                    f"Cache: Detected jump back in time of {back / 1e9:.3f} s. Clearing "
+                    f"{len(self._times)} cached messages."
+                )
+                self._times.clear()
+                self._msgs.clear()
             if len(self._times) >= self.cache_size:
                 del self._times[0]
                 del self._msgs[0]

@@ -11,24 +11,34 @@ input, all within ``slop`` of the new one and spanning strictly less than
 ``slop``; it tries the other inputs' stamps nearest to the new one first and
 emits the first set found (see :mod:`visnav.message_filters` for how this
 differs from :class:`~visnav.message_filters.ApproximateTime`).
+
+Time jumps. rospy's ``ApproximateTimeSynchronizer`` reads ROS time on every
+message and, when it went backwards ("Detected jump back in time. Clearing
+buffer."), empties every queue, the message just added included; old sets can
+then not pair with the replayed ones (``bag play --loop``, a simulator reset).
+visnav's does the same with ``clock`` (by default the input Subscribers' node
+clock, which follows ``/clock`` under ``use_sim_time``). visnav's
+``TimeSynchronizer`` applies the rule too (rospy's only with ``reset=True`` under
+sim time, per queue) but keeps the message that revealed the jump.
 """
 
 from __future__ import annotations
 
 import itertools
 import threading
-import time
 from collections.abc import Callable, Sequence
 from functools import reduce
 from typing import Any
 
 from visnav.message_filters._common import (
+    BackJumpDetector,
     FilterLike,
     LoggerLike,
     check_queue_size,
     default_logger,
     input_names,
     message_stamp_ns,
+    resolve_clock,
     rospy_duration_ns,
 )
 from visnav.message_filters.errors import MessageFilterError
@@ -47,6 +57,9 @@ class TimeSynchronizer(SimpleFilter):
         fs: the input filters (``Subscriber``, ``Cache``, any ``SimpleFilter``).
         queue_size: how many distinct stamps to keep per input while waiting for
             the other inputs (the oldest stamp is dropped first).
+        clock: int nanoseconds ROS time; when it goes backwards every queue is
+            emptied (see the module docs). Default: the clock of the inputs' node
+            (a :class:`~visnav.message_filters.Subscriber`'s), else wall-clock time.
         logger: where warnings go (default the ``visnav.message_filters`` logger).
 
     Messages without ``header.stamp`` are dropped with a warning. A stamp older
@@ -62,10 +75,14 @@ class TimeSynchronizer(SimpleFilter):
         fs: Sequence[FilterLike],
         queue_size: int,
         *,
+        clock: Callable[[], int] | None = None,
         logger: LoggerLike | None = None,
     ) -> None:
         super().__init__()
+        fs = list(fs)
         self.queue_size = check_queue_size(queue_size)
+        self._clock = resolve_clock(clock, fs)
+        self._jump = BackJumpDetector(self._clock)
         self._logger: LoggerLike = logger if logger is not None else default_logger()
         self._lock = threading.Lock()
         self.queues: list[dict[int, Any]] = []
@@ -127,12 +144,27 @@ class TimeSynchronizer(SimpleFilter):
         if last is None or stamp > last:
             self._last[index] = stamp
 
+    def _clear_on_jump(self) -> bool:
+        """Empty every queue if ROS time went backwards since the last message."""
+        back = self._jump.jumped_back()
+        if not back:
+            return False
+        self._logger.info(
+            f"{type(self).__name__}: Detected jump back in time of {back / 1e9:.3f} s. "
+            "Clearing buffer."
+        )
+        for q in self.queues:
+            q.clear()
+        self._last = [None] * len(self.queues)
+        return True
+
     def _on_input(self, msg: Any, index: int) -> None:
         stamp = self._stamp(msg, index)
         if stamp is None:
             return
         out: list[tuple[Any, ...]] = []
         with self._lock:
+            self._clear_on_jump()
             self._note_order(index, stamp)
             queues = self.queues
             my_queue = queues[index]
@@ -167,8 +199,10 @@ class ApproximateTimeSynchronizer(TimeSynchronizer):
             way ``rospy.Duration.from_sec`` does (truncating).
         allow_headerless: stamp messages without ``header.stamp`` with ``clock()``
             on arrival instead of dropping them (arrival delays make this fragile).
-        clock: nanoseconds "now" for headerless messages (e.g.
-            ``node.get_clock().now_ns``); default wall-clock ``time.time_ns``.
+        clock: int nanoseconds ROS time (rospy's ``Time.now()``): stamps headerless
+            messages, and when it goes backwards every queue is emptied, the new
+            message included, as rospy does. Default: the clock of the inputs' node
+            (a :class:`~visnav.message_filters.Subscriber`'s), else wall-clock time.
         logger: where warnings go (default the ``visnav.message_filters`` logger).
 
     Raises:
@@ -188,8 +222,7 @@ class ApproximateTimeSynchronizer(TimeSynchronizer):
     ) -> None:
         self.slop = rospy_duration_ns(slop, "slop")
         self.allow_headerless = allow_headerless
-        self._clock = clock if clock is not None else time.time_ns
-        super().__init__(fs, queue_size, logger=logger)
+        super().__init__(fs, queue_size, clock=clock, logger=logger)
 
     def _stamp(self, msg: Any, index: int) -> int | None:
         stamp = message_stamp_ns(msg)
@@ -210,6 +243,8 @@ class ApproximateTimeSynchronizer(TimeSynchronizer):
             return
         found: tuple[Any, ...] | None = None
         with self._lock:
+            if self._clear_on_jump():
+                return  # rospy adds the message, then clears every queue: it is lost too
             self._note_order(index, stamp)
             found = self._match(index, stamp, msg)
         if found is not None:

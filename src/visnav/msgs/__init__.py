@@ -80,6 +80,7 @@ from visnav.msgs.types import (
     Point32,
     PointCloud2,
     PointField,
+    PointStamped,
     Pose,
     PoseStamped,
     PoseWithCovariance,
@@ -95,6 +96,9 @@ from visnav.msgs.types import (
     TwistStamped,
     TwistWithCovariance,
     Vector3,
+    Vector3Stamped,
+    Wrench,
+    WrenchStamped,
 )
 
 __all__ = [
@@ -157,6 +161,7 @@ __all__ = [
     "Point",
     "Point32",
     "PointCloud2",
+    "PointStamped",
     "PointField",
     "Pose",
     "PoseStamped",
@@ -173,4 +178,7 @@ __all__ = [
     "TwistStamped",
     "TwistWithCovariance",
     "Vector3",
+    "Vector3Stamped",
+    "Wrench",
+    "WrenchStamped",
 ]

@@ -20,6 +20,9 @@ from rosbags.typesys.stores.ros2_humble import (
     geometry_msgs__msg__Point32 as Point32,
 )
 from rosbags.typesys.stores.ros2_humble import (
+    geometry_msgs__msg__PointStamped as PointStamped,
+)
+from rosbags.typesys.stores.ros2_humble import (
     geometry_msgs__msg__Pose as Pose,
 )
 from rosbags.typesys.stores.ros2_humble import (
@@ -51,6 +54,15 @@ from rosbags.typesys.stores.ros2_humble import (
 )
 from rosbags.typesys.stores.ros2_humble import (
     geometry_msgs__msg__Vector3 as Vector3,
+)
+from rosbags.typesys.stores.ros2_humble import (
+    geometry_msgs__msg__Vector3Stamped as Vector3Stamped,
+)
+from rosbags.typesys.stores.ros2_humble import (
+    geometry_msgs__msg__Wrench as Wrench,
+)
+from rosbags.typesys.stores.ros2_humble import (
+    geometry_msgs__msg__WrenchStamped as WrenchStamped,
 )
 from rosbags.typesys.stores.ros2_humble import (
     nav_msgs__msg__MapMetaData as MapMetaData,
@@ -133,6 +145,7 @@ __all__ = [
     "Point",
     "Point32",
     "PointCloud2",
+    "PointStamped",
     "PointField",
     "Pose",
     "PoseStamped",
@@ -149,4 +162,7 @@ __all__ = [
     "TwistStamped",
     "TwistWithCovariance",
     "Vector3",
+    "Vector3Stamped",
+    "Wrench",
+    "WrenchStamped",
 ]

@@ -85,6 +85,7 @@ from visnav.perception.nodes import (
     PointCloudXyzNode,
     PointCloudXyzrgbNode,
 )
+from visnav.perception.stereo_camera_model import StereoCameraModel
 
 __all__ = [
     "CalibrationError",
@@ -132,6 +133,7 @@ __all__ = [
     "ImageProcError",
     "PerceptionError",
     "PinholeCameraModel",
+    "StereoCameraModel",
     "PointCloudXyz",
     "PointCloudXyzrgb",
     "Rectifier",

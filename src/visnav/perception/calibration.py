@@ -8,6 +8,20 @@ matrix with ``cv2.getOptimalNewCameraMatrix`` (``R`` is the identity). As in ROS
 squares), ``square`` is the side of one square in metres, and by default two
 radial coefficients are estimated (``k3`` fixed at 0, ROS's ``--k-coefficients 2``).
 
+Where it differs from ROS, on purpose (measured on OpenCV's sample chessboards
+``left01..14.jpg``, whose OpenCV tutorial pipeline gives RMS 0.409 px, fx 536.5):
+
+* the ``cornerSubPix`` window is OpenCV's 11 px half-size capped at 0.4 x the corner
+  spacing (:func:`~visnav.perception.chessboard.refine_radius`); ROS's half-spacing
+  window reaches the neighbouring squares on small boards (RMS 1.32 px, fx 553.8,
+  cx 9 px off); visnav gives RMS 0.245 px, fx 534.3;
+* views that cannot determine the focal length are refused instead of giving a wrong
+  K (:mod:`~visnav.perception.calibration_views`: repeated poses, boards parallel to
+  the image plane);
+* images above 64 MP are refused from their file header before decoding
+  (:mod:`~visnav.perception.calibration_images`); large ones are searched on a
+  ~1280 x 960 copy (ROS: ~640 x 480) and refined at full resolution.
+
 :func:`write_camera_info_yaml` and :func:`read_camera_info_yaml` use the YAML
 layout of ``camera_calibration_parsers`` (what ``camera_info_url`` files hold)::
 
@@ -42,6 +56,7 @@ from visnav.perception._calibration_common import (
     WarningLogger,
     default_logger,
 )
+from visnav.perception.calibration_images import read_gray_image
 from visnav.perception.calibration_sources import (
     IMAGE_EXTENSIONS,
     SpinUntil,
@@ -50,6 +65,7 @@ from visnav.perception.calibration_sources import (
     list_image_files,
     select_views,
 )
+from visnav.perception.calibration_views import check_views
 from visnav.perception.camera_info_yaml import (
     camera_info_from_matrices,
     load_calibration_yaml,
@@ -58,6 +74,7 @@ from visnav.perception.camera_info_yaml import (
     write_camera_info_yaml,
 )
 from visnav.perception.chessboard import (
+    check_image_size,
     find_chessboard,
     image_message_gray,
     object_points,
@@ -157,25 +174,23 @@ def _load(source: ImageSource, index: int) -> tuple[str, NDArray[np.uint8]]:
     """Return (display name, gray uint8 pixels) of one calibration image."""
     if isinstance(source, tuple):
         name, array = source
-        return str(name), to_gray(array, str(name))
+        return str(name), _sized(to_gray(array, str(name)), str(name))
     if isinstance(source, np.ndarray):
         name = f"image {index}"
-        return name, to_gray(source, name)
+        return name, _sized(to_gray(source, name), name)
     if isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        if not path.is_file():
-            text = f"{path}: no such image file"
-            raise CalibrationError(text)
-        pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if pixels is None:
-            text = f"{path}: cannot read it as an image (unsupported format or corrupt file)"
-            raise CalibrationError(text)
-        return path.name, to_gray(pixels, path.name)
+        return path.name, read_gray_image(path)
     if hasattr(source, "encoding") and hasattr(source, "data"):
         name = f"image {index}"
-        return name, image_message_gray(source, name)
+        return name, _sized(image_message_gray(source, name), name)
     text = f"image {index} is a {type(source).__name__}: expected a path, an array or an Image"
     raise CalibrationError(text)
+
+
+def _sized(gray: NDArray[np.uint8], name: str) -> NDArray[np.uint8]:
+    check_image_size(int(gray.shape[1]), int(gray.shape[0]), name)
+    return gray
 
 
 def _calibration_flags(distortion_model: str, k_coefficients: int) -> int:
@@ -219,6 +234,7 @@ def calibrate_from_images(
     zero_tangent_dist: bool = False,
     alpha: float = 0.0,
     min_views: int = 5,
+    check_degenerate: bool = True,
     logger: WarningLogger | None = None,
 ) -> CalibrationResult:
     """Calibrate one camera from chessboard views.
@@ -236,15 +252,19 @@ def calibrate_from_images(
         zero_tangent_dist: fix p1 = p2 = 0.
         alpha: 0 keeps only valid pixels in the rectified image (P), 1 keeps all
             source pixels (``cv2.getOptimalNewCameraMatrix``).
-        min_views: fewest usable views to attempt a calibration.
+        min_views: fewest usable views to attempt a calibration (distinct board poses).
+        check_degenerate: refuse views that cannot determine the focal length (see
+            :func:`visnav.perception.calibration_views.check_views`: repeated board
+            poses, or every board nearly parallel to the image plane) instead of
+            returning a wrong K.
         logger: where per-image warnings go (default this module's logger).
 
     Returns:
         The :class:`CalibrationResult`.
 
     Raises:
-        CalibrationError: an unreadable image, images of different sizes, fewer than
-            ``min_views`` usable views, or invalid parameters.
+        CalibrationError: an unreadable or oversized image, images of different sizes,
+            fewer than ``min_views`` usable views, degenerate views, or invalid parameters.
     """
     pattern = parse_pattern(pattern)
     if isinstance(square, bool) or not isinstance(square, (int, float)) or not square > 0:
@@ -290,11 +310,13 @@ def calibrate_from_images(
     if size is None or len(image_points) < min_views:
         text = (
             f"only {len(image_points)} of {total} images show the full {pattern[0]}x{pattern[1]} "
-            f"chessboard: at least {min_views} views are needed. Check --pattern (inner corners, "
-            "columns x rows), that the whole board is visible, and vary its position, tilt and "
-            "distance"
+            f"chessboard{_common_reason(rejected)}: at least {min_views} views are needed. "
+            "Check --pattern (inner corners, columns x rows), that the whole board is visible, "
+            "and vary its position, tilt and distance"
         )
         raise CalibrationError(text)
+    if check_degenerate:
+        check_views(names, image_points, pattern, min_views=min_views, logger=log)
     return _solve(
         names,
         image_points,
@@ -307,6 +329,15 @@ def calibrate_from_images(
         alpha=alpha,
         rejected=rejected,
     )
+
+
+def _common_reason(rejected: list[tuple[str, str]]) -> str:
+    """`` (N rejected: reason)`` for the most frequent rejection reason, or ""."""
+    if not rejected:
+        return ""
+    reasons = [reason for _, reason in rejected]
+    top = max(set(reasons), key=reasons.count)
+    return f" ({reasons.count(top)} rejected: {top})"
 
 
 def _solve(

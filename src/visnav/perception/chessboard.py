@@ -16,15 +16,26 @@ from visnav.perception._calibration_common import CalibrationError
 from visnav.perception.image_transport import convert_encoding
 
 __all__ = [
+    "MAX_IMAGE_PIXELS",
     "board_view_params",
+    "check_image_size",
+    "corner_spacing",
     "find_chessboard",
     "image_message_gray",
     "object_points",
     "parse_pattern",
+    "perspective_ratio",
+    "refine_radius",
     "to_gray",
 ]
 
 _BORDER_PX = 8  # like ROS: a corner this close to the edge means the board is cut off
+_MIN_PX_PER_SQUARE = 3  # smaller boards cannot be found (and break adaptiveThreshold)
+_OPENCV_HALF_WINDOW = 11  # cornerSubPix winSize of OpenCV's calibration tutorial
+_DETECT_PIXELS = 1280 * 960  # larger images are searched on a copy about this size ...
+_DOWNSCALE_ABOVE = 1.5  # ... when they are more than 1.5x larger per side
+MAX_IMAGE_PIXELS = 64_000_000
+"""Largest image calibrate reads (64 MP): larger ones are refused before decoding."""
 
 
 def parse_pattern(pattern: str | Sequence[int]) -> tuple[int, int]:
@@ -95,10 +106,73 @@ def image_message_gray(msg: Any, name: str) -> NDArray[np.uint8]:
     return to_gray(array, name)
 
 
+def check_image_size(width: int, height: int, name: str) -> None:
+    """Refuse an image larger than :data:`MAX_IMAGE_PIXELS` (a one-line error naming it).
+
+    Raises:
+        CalibrationError: the image is too large to be a camera frame worth calibrating on.
+    """
+    if width * height > MAX_IMAGE_PIXELS:
+        text = (
+            f"{name}: image is {width}x{height} px ({width * height / 1e6:.0f} MP): larger than "
+            f"the {MAX_IMAGE_PIXELS // 1_000_000} MP visnav calibrate reads. Calibrate on frames "
+            "at the camera's working resolution (a calibration is only valid at the size it "
+            "was computed for)"
+        )
+        raise CalibrationError(text)
+
+
+def refine_radius(spacing: float, scale: float = 1.0) -> int:
+    """Half-size of the ``cornerSubPix`` window for a board whose corners are ``spacing`` px apart.
+
+    OpenCV's calibration tutorial uses an 11 px half-size (a 23 x 23 window). On small
+    boards that window reaches the neighbouring squares' edges and pulls every corner
+    (ROS camera_calibration's half-spacing window does the same: 1.3 px RMS and fx 3 %
+    off on OpenCV's own samples), so it is capped at 0.4 x spacing, which keeps the window
+    inside the four squares around the corner. ``scale`` > 1 when the corners were found
+    on a downscaled copy: the window must then cover their error of up to ``scale`` px.
+    """
+    cap = max(2, math.ceil(0.4 * spacing))
+    return min(max(_OPENCV_HALF_WINDOW, math.ceil(scale)), cap)
+
+
+def _detect(
+    gray: NDArray[np.uint8], pattern: tuple[int, int]
+) -> tuple[NDArray[np.float32] | None, float, str]:
+    """Find the corners (unrefined, full-resolution pixels); large images on a smaller copy.
+
+    As ROS camera_calibration does, an image much larger than VGA is searched at about
+    1280 x 960 and the corners scaled back (``findChessboardCorners`` time grows with
+    the pixel count; the refinement then runs on the full image).
+    """
+    h, w = gray.shape[:2]
+    scale = math.sqrt(w * h / _DETECT_PIXELS)
+    search: NDArray[Any] = gray
+    if scale > _DOWNSCALE_ABOVE:
+        size = (max(1, round(w / scale)), max(1, round(h / scale)))
+        search = np.asarray(cv2.resize(gray, size, interpolation=cv2.INTER_AREA))
+    else:
+        scale = 1.0
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    try:
+        found, corners = cv2.findChessboardCorners(search, pattern, flags=flags)
+    except cv2.error as exc:
+        return None, scale, f"OpenCV could not search the {w}x{h} image: {exc.err}"
+    if not found or corners is None:
+        return None, scale, f"chessboard {pattern[0]}x{pattern[1]} not found"
+    pts = np.asarray(corners, dtype=np.float32).reshape(-1, 2)
+    if scale != 1.0:
+        pts = ((pts + 0.5) * np.float32(scale) - 0.5).astype(np.float32)
+    return pts, scale, ""
+
+
 def find_chessboard(
     gray: NDArray[np.uint8], pattern: tuple[int, int]
 ) -> tuple[NDArray[np.float32] | None, str]:
     """Find and refine the inner corners of a chessboard.
+
+    Detection is ``cv2.findChessboardCorners`` (adaptive threshold, normalised image),
+    refinement ``cv2.cornerSubPix`` with the window of :func:`refine_radius`.
 
     Args:
         gray: 8-bit gray image.
@@ -107,13 +181,22 @@ def find_chessboard(
     Returns:
         ``(corners, "")`` with corners of shape (columns * rows, 2) in pixels, row by
         row; or ``(None, reason)`` when the board is not (fully) visible.
+
+    Raises:
+        CalibrationError: the image is larger than :data:`MAX_IMAGE_PIXELS`.
     """
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    found, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
-    if not found or corners is None:
-        return None, f"chessboard {pattern[0]}x{pattern[1]} not found"
-    pts = np.asarray(corners, dtype=np.float32).reshape(-1, 2)
     h, w = gray.shape[:2]
+    check_image_size(w, h, "image")
+    short, long = sorted(pattern)
+    if min(h, w) < _MIN_PX_PER_SQUARE * (short + 1) or max(h, w) < _MIN_PX_PER_SQUARE * (long + 1):
+        return None, (
+            f"the image is {w}x{h} px, too small to show a {pattern[0]}x{pattern[1]} "
+            f"chessboard (at least {_MIN_PX_PER_SQUARE} px per square: "
+            f"{_MIN_PX_PER_SQUARE * (long + 1)}x{_MIN_PX_PER_SQUARE * (short + 1)} px)"
+        )
+    pts, scale, reason = _detect(gray, pattern)
+    if pts is None:
+        return None, reason
     near_edge = (
         (pts[:, 0] < _BORDER_PX)
         | (pts[:, 1] < _BORDER_PX)
@@ -122,18 +205,22 @@ def find_chessboard(
     )
     if near_edge.any():
         return None, "chessboard touches the image border (partly outside the view)"
-    cols, rows = pattern
-    grid = pts.reshape(rows, cols, 2)
-    spacing = min(
-        float(np.linalg.norm(np.diff(grid, axis=1), axis=2).min()),
-        float(np.linalg.norm(np.diff(grid, axis=0), axis=2).min()),
-    )
-    radius = max(2, math.ceil(spacing * 0.5))
-    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 0.01)
+    radius = refine_radius(corner_spacing(pts, pattern), scale)
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 0.001)
     refined = cv2.cornerSubPix(
         gray, pts.reshape(-1, 1, 2).copy(), (radius, radius), (-1, -1), criteria
     )
     return np.asarray(refined, dtype=np.float32).reshape(-1, 2), ""
+
+
+def corner_spacing(corners: NDArray[np.float32], pattern: tuple[int, int]) -> float:
+    """The smallest distance in pixels between neighbouring corners (along rows or columns)."""
+    cols, rows = pattern
+    grid = corners.reshape(rows, cols, 2)
+    return min(
+        float(np.linalg.norm(np.diff(grid, axis=1), axis=2).min()),
+        float(np.linalg.norm(np.diff(grid, axis=0), axis=2).min()),
+    )
 
 
 def object_points(pattern: tuple[int, int], square: float) -> NDArray[np.float32]:
@@ -162,3 +249,23 @@ def board_view_params(
     skew = min(1.0, 2.0 * abs(math.pi / 2 - math.acos(max(-1.0, min(1.0, cos)))))
     mean = corners.mean(axis=0)
     return np.array([mean[0] / w, mean[1] / h, math.sqrt(area / (w * h)), skew])
+
+
+def perspective_ratio(
+    corners: NDArray[np.float32], pattern: tuple[int, int], square: float = 1.0
+) -> float:
+    """How much farther the board's farthest corner is than its nearest, from the image alone.
+
+    The board-to-image homography ``H`` has a projective row ``(h31, h32, h33)`` whose
+    value at a board point is proportional to that point's depth, whatever the camera
+    matrix; the ratio max/min over the corners, minus 1, is 0 for a board parallel to
+    the image plane (which carries no information on the focal length) and grows with
+    its tilt. Returns 0 when no homography can be fitted.
+    """
+    board = object_points(pattern, square)[:, :2]
+    h_mat, _ = cv2.findHomography(board, corners.reshape(-1, 2).astype(np.float64), 0)
+    if h_mat is None:
+        return 0.0
+    w = board.astype(np.float64) @ h_mat[2, :2] + h_mat[2, 2]
+    low, high = float(np.abs(w).min()), float(np.abs(w).max())
+    return high / low - 1.0 if low > 0 else 0.0

@@ -2,7 +2,9 @@
 
 :class:`Buffer` stores stamped transforms and answers ``T_target_source`` at
 any stored time (interpolating between samples, as tf2). The errors keep
-tf2's names. :mod:`visnav.tf.transforms` holds the numpy/message math used
+tf2's names. :mod:`visnav.tf.geometry` applies transforms to stamped messages
+(tf2_geometry_msgs' and tf2_sensor_msgs' ``do_transform_*``; ``Buffer.transform``).
+:mod:`visnav.tf.transforms` holds the numpy/message math used
 across visnav (quaternions x, y, z, w; ``T_a_b`` maps points from ``b`` into ``a``).
 
 Broadcasters, the listener and the state publishers build on the graph and
@@ -18,6 +20,15 @@ from visnav.tf.errors import (
     InvalidArgumentException,
     LookupException,
     TransformException,
+)
+from visnav.tf.geometry import (
+    do_transform_cloud,
+    do_transform_point,
+    do_transform_pose,
+    do_transform_pose_stamped,
+    do_transform_pose_with_covariance_stamped,
+    do_transform_vector3,
+    do_transform_wrench,
 )
 from visnav.tf.transforms import (
     check_transform_matrix,
@@ -51,6 +62,13 @@ __all__ = [
     "TransformException",
     "check_transform_matrix",
     "compose",
+    "do_transform_cloud",
+    "do_transform_point",
+    "do_transform_pose",
+    "do_transform_pose_stamped",
+    "do_transform_pose_with_covariance_stamped",
+    "do_transform_vector3",
+    "do_transform_wrench",
     "euler_from_quaternion",
     "invert",
     "matrix_to_pose",

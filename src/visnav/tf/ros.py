@@ -79,6 +79,11 @@ class StaticTransformBroadcaster:
 class TransformListener:
     """Subscribes ``/tf`` and ``/tf_static`` and fills a :class:`Buffer`.
 
+    As tf2_ros's listener, it reads the node's ROS time on every message and clears
+    the buffer's dynamic transforms when that time jumped back (``bag play --loop``,
+    a simulator reset under ``use_sim_time``): "Detected jump back in time of X s.
+    Clearing TF buffer." Static transforms are kept (tf2's ``clear``).
+
     Args:
         buffer: the buffer to fill.
         node: the node whose executor runs the callbacks; None makes a private node.
@@ -108,6 +113,8 @@ class TransformListener:
         elif node is None:
             node = Node("transform_listener")
         self.node = node
+        self._now_ns = node.get_clock().now_ns
+        self._last_update_ns: int | None = None
         self._authorities: dict[tuple[str, int], str] = {}
         self._tf = node.create_subscription(TFMessage, "/tf", self._on_tf, qos)
         self._static = node.create_subscription(
@@ -130,12 +137,24 @@ class TransformListener:
             self._authorities[key] = name
         return name
 
+    def _check_for_reset(self) -> None:
+        now = self._now_ns()
+        last = self._last_update_ns
+        if last is not None and now < last:
+            self.node.get_logger().warning(
+                f"Detected jump back in time of {(last - now) / 1e9:.6f}s. Clearing TF buffer."
+            )
+            self.buffer.clear()
+        self._last_update_ns = now
+
     def _on_tf(self, msg: Any, info: MessageInfo | None) -> None:
+        self._check_for_reset()
         authority = self._authority(info)
         for t in msg.transforms:
             self.buffer.set_transform(t, authority)
 
     def _on_static(self, msg: Any, info: MessageInfo | None) -> None:
+        self._check_for_reset()
         authority = self._authority(info)
         for t in msg.transforms:
             self.buffer.set_transform_static(t, authority)
