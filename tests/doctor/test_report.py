@@ -121,11 +121,11 @@ def test_expect_errors_name_key_and_value(data: Any, match: str) -> None:
 
 
 def test_expect_file_errors(tmp_path: Path) -> None:
-    with pytest.raises(ExpectError, match="cannot read --expect file"):
+    with pytest.raises(ExpectError, match="the --expect file does not exist"):
         load_expectations(tmp_path / "missing.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_text("topics: [\n")
-    with pytest.raises(ExpectError, match="is not valid YAML"):
+    with pytest.raises(ExpectError, match="the --expect file does not parse as YAML"):
         load_expectations(bad)
 
 

@@ -76,7 +76,7 @@ def test_a_plain_executor_advances_it_in_batches(ctx: Context, world: str) -> No
         ({"spawn": [1.0, 2.0]}, "expected [x, y, z, yaw]"),
         ({"robot_args": ["depth_rate"]}, "is not name:=value"),
         ({"robot": "quadrocopter"}, "unknown robot"),
-        ({"world_params": ["size:=[1, 2"]}, "is not a YAML value"),
+        ({"world_params": ["size:=[1, 2"]}, "does not parse as YAML"),
     ],
 )
 def test_bad_parameters_are_one_clear_error(

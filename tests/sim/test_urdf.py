@@ -358,7 +358,7 @@ def test_plain_urdf_with_args_warns(tmp_path: Path) -> None:
     path.write_text(robot(f'<link name="a"><inertial><mass value="1"/>{INERTIA}</inertial></link>'))
     desc = load_robot(path, args={"x": "1"})
     assert any("not Xacro" in w for w in desc.warnings)
-    with pytest.raises(RobotDescriptionError, match="cannot read"):
+    with pytest.raises(RobotDescriptionError, match="the robot description does not exist"):
         load_robot(tmp_path / "nope.urdf")
 
 

@@ -197,7 +197,7 @@ def test_ground_null_default_and_texture_shorthand() -> None:
 @pytest.mark.parametrize(
     ("text", "fragments"),
     [
-        ("objects:\n  - {type: box, size: [1, 2\n", ["malformed YAML", ":3"]),
+        ("objects:\n  - {type: box, size: [1, 2\n", ["does not parse as YAML", ":3"]),
         ("objects:\n  - {type: cube, size: [1, 1, 1]}\n", ["unknown shape type 'cube'", ":2"]),
         ("objects:\n  - {type: box, size: [1, -2, 1]}\n", ["size", "> 0", "-2", ":2"]),
         ("objects:\n  - {type: sphere, radius: 0}\n", ["radius", "> 0"]),

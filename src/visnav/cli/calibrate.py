@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from visnav.cli._common import cli_node
+from visnav.outpaths import check_output_file
 from visnav.perception.calibration import CalibrationError, calibrate
 
 __all__ = ["add_arguments"]
@@ -27,6 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Run the calibration and print its report (RMS and per-image errors)."""
+    if args.output:  # refused before the views are collected, not after
+        check_output_file(args.output, what="the camera_info YAML (-o)", error=CalibrationError)
     common = {
         "pattern": args.pattern,
         "square": args.square,

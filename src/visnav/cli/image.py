@@ -86,7 +86,10 @@ def cmd_view(args: argparse.Namespace) -> int:
     """``image view``."""
     if args.snapshot is None:
         return _stream(args)
+    from visnav.outpaths import check_output_file
     from visnav.viz.display import message_to_display, write_png
+
+    check_output_file(args.snapshot, what="the snapshot (--snapshot)")  # before waiting
 
     value_range = tuple(args.range) if args.range else None
     with cli_node(args) as node:

@@ -1,8 +1,10 @@
 """Entry point of the ``visnav`` command: argument parsing and the one error boundary.
 
-Verb modules are imported lazily so that ``visnav --help`` stays fast. Errors
-that visnav raises on purpose print as one line ``error: ...`` (exit 1); with
-``--debug`` the traceback is shown too.
+Verb modules are imported lazily so that ``visnav --help`` stays fast. Every
+error that reaches here prints as one line ``error: ...`` (exit 1): visnav's own
+errors as they are, those of the OS, codecs, PyYAML, OpenCV and the serializer
+translated by :func:`visnav.cli._errors.describe_error`; with ``--debug`` the
+traceback is shown too.
 """
 
 from __future__ import annotations
@@ -19,9 +21,11 @@ __all__ = ["build_parser", "main"]
 # verb -> (module, help)
 VERBS: dict[str, tuple[str, str]] = {
     "run": ("visnav.cli.run", "run a built-in scenario: car (office) or drone (forest)"),
+    "sweep": ("visnav.cli.sweep", "run a scenario over seeds x settings (local or Ray), report"),
     "topic": ("visnav.cli.topic", "inspect and publish topics (ros2 topic)"),
     "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
     "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),
+    "camera": ("visnav.cli.camera", "usb_cam / cv_camera: a camera, video file or stream"),
     "calibrate": ("visnav.cli.calibrate", "chessboard camera calibration -> camera_info YAML"),
     "slam": ("visnav.cli.slam", "offline RGB-D SLAM on a TUM folder or a bag -> TUM trajectory"),
     "eval": ("visnav.cli.eval", "trajectory errors ATE / RPE of TUM files (evo's numbers)"),
@@ -29,8 +33,10 @@ VERBS: dict[str, tuple[str, str]] = {
     "image": ("visnav.cli.image", "show one image topic; --snapshot writes a PNG (rqt_image_view)"),
     "launch": ("visnav.cli.launch", "start a launch file: YAML or roslaunch XML (ros2 launch)"),
     "bag": ("visnav.cli.bag", "record, inspect, play and convert bags (ros2 bag)"),
+    "map": ("visnav.cli.map", "save a live /map as map.yaml + map.pgm, describe a saved map"),
     "sim": ("visnav.cli.sim", "simulate a world and a robot (MuJoCo), sensors on the graph"),
     "doctor": ("visnav.cli.doctor", "find data-chain faults in a live graph or a bag, with fixes"),
+    "bridge": ("visnav.cli.bridge", "join a ROS 1 graph: master XML-RPC + TCPROS (ros1_bridge)"),
 }
 
 
@@ -78,19 +84,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="[%(levelname)s] %(message)s",
         stream=sys.stderr,
     )
-    from visnav.errors import VisnavError
+    from visnav.cli._errors import describe_error
 
     try:
         code: int = args.func(args)
-    except VisnavError as exc:
-        if args.debug:
-            traceback.print_exc()
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
         return 0
+    except Exception as exc:  # noqa: BLE001  (the one boundary: every error becomes one line)
+        if args.debug:
+            traceback.print_exc()
+        print(f"error: {describe_error(exc)}", file=sys.stderr)
+        return 1
     return code
 
 

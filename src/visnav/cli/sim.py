@@ -15,9 +15,8 @@ import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
 from visnav.errors import VisnavError
+from visnav.safe_yaml import load_yaml
 
 if TYPE_CHECKING:
     from visnav.graph.context import Context
@@ -51,11 +50,8 @@ def parse_assignments(items: Sequence[str], *, what: str) -> dict[str, str]:
 def _world_params(items: Mapping[str, str]) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for name, text in items.items():
-        try:
-            params[name] = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            msg = f"--world-param {name}:={text!r} is not a YAML value ({exc.__class__.__name__})"
-            raise SimArgumentError(msg) from None
+        source = f"--world-param {name}:={text!r}"
+        params[name] = load_yaml(text, source=source, what="the value", error=SimArgumentError)
     return params
 
 
@@ -180,12 +176,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def cmd_sim(args: argparse.Namespace) -> int:
     """``visnav sim``."""
     from visnav.graph.context import Context
+    from visnav.sim.guards import refuse_second_simulation
 
     # PyOpenGL logs "No OpenGL_accelerate module loaded" at INFO level on import.
     logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
     robot_args = parse_assignments(args.arg, what="--arg")
     world_params = _world_params(parse_assignments(args.world_param, what="--world-param"))
     with Context(getattr(args, "domain", None)) as ctx:
+        refuse_second_simulation(ctx, command="visnav sim")
         stats = run_sim(
             args.world,
             args.robot,

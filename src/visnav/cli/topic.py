@@ -7,8 +7,6 @@ import sys
 import time
 from typing import Any
 
-import yaml
-
 from visnav.cli._common import cli_node
 from visnav.graph.introspect import subscription_qos_for, topic_type
 from visnav.graph.monitor import BandwidthMeter, DelayMeter, RateMeter
@@ -17,6 +15,7 @@ from visnav.msgs.construct import get_field, message_from_dict, message_to_yaml
 from visnav.msgs.errors import MessageError
 from visnav.msgs.serde import get_message_class, serialize
 from visnav.msgs.time import time_to_ns
+from visnav.safe_yaml import load_yaml
 
 __all__ = ["add_arguments"]
 
@@ -194,11 +193,15 @@ def cmd_measure(args: argparse.Namespace) -> int:
 
 def cmd_pub(args: argparse.Namespace) -> int:
     """``topic pub``."""
-    try:
-        values = yaml.safe_load(args.values) or {}
-    except yaml.YAMLError as exc:
-        text = f'values {args.values!r} are not YAML: {exc}; write e.g. "{{linear: {{x: 0.5}}}}"'
-        raise MessageError(text) from exc
+    values = (
+        load_yaml(
+            args.values,
+            source=f"values {args.values!r}",
+            what='the text (write e.g. "{linear: {x: 0.5}}")',
+            error=MessageError,
+        )
+        or {}
+    )
     if not isinstance(values, dict):
         text = f"values {args.values!r}: expected a YAML mapping of fields"
         raise MessageError(text)

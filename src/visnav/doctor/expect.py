@@ -27,9 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
-import yaml
-
 from visnav.doctor.errors import ExpectError
+from visnav.safe_yaml import load_yaml_file
 
 __all__ = [
     "Expectations",
@@ -296,14 +295,5 @@ def load_expectations(path: str | Path) -> Expectations:
         ExpectError: the file is missing, not YAML, or does not follow the schema.
     """
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        msg = f"cannot read --expect file '{p}': {exc.strerror or exc}"
-        raise ExpectError(msg) from exc
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        msg = f"--expect file '{p}' is not valid YAML: {exc}"
-        raise ExpectError(msg) from exc
+    data = load_yaml_file(p, what="the --expect file", error=ExpectError)
     return Expectations.from_dict(data or {}, source=str(p))

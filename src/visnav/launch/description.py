@@ -18,9 +18,19 @@ from visnav.graph.parameters import ParameterType
 from visnav.launch.errors import LaunchParseError
 from visnav.node_registry import PENDING_NODES, check_node_name
 
-__all__ = ["PROCESS_KINDS", "ArgInfo", "LaunchDescription", "NodeSpec", "check_param_value"]
+__all__ = [
+    "ON_ERROR",
+    "PROCESS_KINDS",
+    "ArgInfo",
+    "LaunchDescription",
+    "NodeSpec",
+    "check_param_value",
+]
 
 PROCESS_KINDS = ("shared", "own")
+ON_ERROR = ("log", "restart", "shutdown")
+"""What an exception in a node's callback does: log it and go on, restart the node's
+process, or stop the launch."""
 
 
 def check_param_value(name: str, value: Any, where: str = "") -> Any:
@@ -57,6 +67,9 @@ class NodeSpec:
         respawn_delay: seconds to wait before a restart.
         respawn_max_retries: restarts allowed (None: no limit).
         required: stop the whole launch when this node's process exits.
+        on_error: an exception in a callback is logged and the node goes on (``"log"``),
+            ends its process, which is restarted as with ``respawn`` (``"restart"``, ``own``
+            only), or stops the launch as with ``required`` (``"shutdown"``).
         source: ``file:line`` where the node was declared.
     """
 
@@ -71,6 +84,7 @@ class NodeSpec:
     respawn_delay: float = 0.0
     respawn_max_retries: int | None = None
     required: bool = False
+    on_error: str = "log"
     source: str = ""
 
     @property
@@ -108,6 +122,7 @@ class NodeSpec:
             "respawn_delay": self.respawn_delay,
             "respawn_max_retries": self.respawn_max_retries,
             "required": self.required,
+            "on_error": self.on_error,
             "source": self.source,
         }
 
@@ -159,7 +174,8 @@ class LaunchDescription:
 
         Raises:
             LaunchParseError: an invalid name or namespace, an unknown process kind,
-                ``respawn`` on a shared node, two nodes with one fully qualified name.
+                ``respawn`` or ``on_error: restart`` on a shared node, an unknown ``on_error``,
+                two nodes with one fully qualified name.
         """
         seen: dict[str, NodeSpec] = {}
         for spec in self.nodes:
@@ -170,6 +186,18 @@ class LaunchDescription:
                 raise LaunchParseError(f"{at}node {spec.name!r}: {exc}") from None
             if spec.process not in PROCESS_KINDS:
                 msg = f"{at}node {fqn}: process is {spec.process!r}: expected 'own' or 'shared'"
+                raise LaunchParseError(msg)
+            if spec.on_error not in ON_ERROR:
+                msg = (
+                    f"{at}node {fqn}: on_error is {spec.on_error!r}: expected one of "
+                    f"{', '.join(ON_ERROR)}"
+                )
+                raise LaunchParseError(msg)
+            if spec.on_error == "restart" and spec.process != "own":
+                msg = (
+                    f"{at}node {fqn}: on_error: restart needs its own process: set "
+                    "'process: own' (a shared process holds other nodes too)"
+                )
                 raise LaunchParseError(msg)
             if spec.respawn and spec.process != "own":
                 msg = (
@@ -237,6 +265,8 @@ def _format_node(spec: NodeSpec) -> Sequence[str]:
         flags.append(f"respawn(delay {spec.respawn_delay:g} s{retries})")
     if spec.required:
         flags.append("required")
+    if spec.on_error != "log":
+        flags.append(f"on_error={spec.on_error}")
     out = [f"  {spec.fqn}  [{spec.executable}]  {' '.join(flags)}{status}"]
     for key, value in spec.params.items():
         text = repr(value)

@@ -101,9 +101,12 @@ def fields_to_dtype(
         A structured dtype with the fields' names, types and offsets.
 
     Raises:
-        MessageError: unknown datatype, duplicate name, or a field reaching
-            past ``point_step``.
+        MessageError: unknown datatype, duplicate name, a negative ``point_step``, or
+            a field reaching past ``point_step``.
     """
+    if int(point_step) < 0:
+        text = f"PointCloud2.point_step is {point_step}: expected a size >= 0 (uint32 in ROS)"
+        raise MessageError(text)
     names: list[str] = []
     formats: list[Any] = []
     offsets: list[int] = []
@@ -191,6 +194,11 @@ def _checked_buffer(msg: PointCloud2) -> NDArray[np.uint8]:
     """Validate a cloud's sizes and return its data as flat uint8."""
     height, width = int(msg.height), int(msg.width)
     point_step, row_step = int(msg.point_step), int(msg.row_step)
+    sizes = {"height": height, "width": width, "point_step": point_step, "row_step": row_step}
+    for name, value in sizes.items():
+        if value < 0:
+            text = f"PointCloud2.{name} is {value}: expected a size >= 0 (uint32 in ROS)"
+            raise MessageError(text)
     if row_step < width * point_step:
         text = (
             f"PointCloud2.row_step is {row_step}: expected at least width * point_step = "

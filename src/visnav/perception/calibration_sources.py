@@ -73,38 +73,34 @@ def message_pixels(msg: Any) -> NDArray[Any]:
 def images_from_bag(bag: str | os.PathLike[str], topic: str) -> Iterator[tuple[str, NDArray[Any]]]:
     """Yield (name, pixels) for each Image / CompressedImage on ``topic`` in a bag.
 
-    Reads ROS 1 bags and ROS 2 bags (sqlite3 or MCAP) with ``rosbags``. Names are
-    ``"<topic>@<t> s"`` (receive time).
+    Reads every bag :class:`visnav.bag.BagReader` reads (ROS 1, rosbag2 MCAP / SQLite 3,
+    and unclosed or damaged-index bags, recovered with a warning, as ``bag info``/``play``).
+    Names are ``"<topic>@<t> s"`` (receive time).
 
     Raises:
         CalibrationError: the bag cannot be opened or has no such image topic.
+        BagError: a message of the bag does not read (names the file and the fix).
     """
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415 - only needed for bags
-
-    from visnav.msgs.serde import typestore  # noqa: PLC0415
+    from visnav.bag import BagError, BagReader  # noqa: PLC0415 - only needed for bags
 
     path = Path(bag)
     try:
-        reader = AnyReader([path], default_typestore=typestore())
-        reader.open()
-    except Exception as exc:  # rosbags raises several unrelated types
+        opened = BagReader(path)
+    except BagError as exc:
         text = f"{path}: cannot open the bag: {exc}"
         raise CalibrationError(text) from exc
-    try:
+    with opened as reader:
         wanted = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
-        conns = [c for c in reader.connections if c.topic == topic and c.msgtype in wanted]
-        if not conns:
-            topics = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
+        meta = reader.topics.get(topic)
+        if meta is None or meta.type_name not in wanted:
+            topics = sorted(f"{t.name} ({t.type_name})" for t in reader.topics.values())
             text = (
                 f"{path}: no Image/CompressedImage topic {topic!r}; "
                 f"the bag has: {', '.join(topics)}"
             )
             raise CalibrationError(text)
-        for conn, stamp, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            yield f"{topic}@{stamp / 1e9:.3f} s", message_pixels(msg)
-    finally:
-        reader.close()
+        for m in reader.messages([topic]):
+            yield f"{topic}@{m.t_ns / 1e9:.3f} s", message_pixels(m.msg)
 
 
 class SpinUntil(Protocol):

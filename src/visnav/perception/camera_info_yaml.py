@@ -26,6 +26,7 @@ import yaml
 
 from visnav.msgs.types import CameraInfo, Header, RegionOfInterest, Time
 from visnav.perception._calibration_common import CalibrationError, WarningLogger, default_logger
+from visnav.safe_yaml import load_yaml_file
 
 __all__ = [
     "CalibrationLike",
@@ -177,7 +178,7 @@ def resolve_camera_info_url(url: str | os.PathLike[str], *, camera_name: str | N
     if re.match(r"^[A-Za-z][A-Za-z0-9+.-]*://", text):
         msg = f"camera_info_url {os.fspath(url)!r}: unsupported scheme; use file:// or a path"
         raise CalibrationError(msg)
-    return Path(text).expanduser()
+    return Path(os.path.expanduser(text))  # noqa: PTH111 (Path.expanduser raises on "~user" with no such user)
 
 
 def _matrix(doc: dict[str, Any], field: str, shape: tuple[int, int] | None, where: str) -> Any:
@@ -225,16 +226,7 @@ def load_calibration_yaml(
     if file.suffix.lower() == ".ini":
         text = f"{where}: INI calibration files are not supported; use the YAML format"
         raise CalibrationError(text)
-    try:
-        content = file.read_text(encoding="utf-8")
-    except OSError as exc:
-        text = f"{where}: cannot read the calibration file: {exc.strerror or exc}"
-        raise CalibrationError(text) from exc
-    try:
-        doc = yaml.safe_load(content)
-    except yaml.YAMLError as exc:
-        text = f"{where}: not valid YAML: {exc}"
-        raise CalibrationError(text) from exc
+    doc = load_yaml_file(file, what="the camera_info YAML", error=CalibrationError)
     if not isinstance(doc, dict):
         text = f"{where}: expected a YAML mapping of calibration fields, got {type(doc).__name__}"
         raise CalibrationError(text)

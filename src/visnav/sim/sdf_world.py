@@ -50,6 +50,7 @@ from visnav.sim.worldmodel import (
     WorldWarning,
     rpy_to_matrix,
 )
+from visnav.textfile import read_text
 
 if TYPE_CHECKING:
     import numpy.typing as npt
@@ -574,9 +575,5 @@ def load_sdf_world(path: str | Path, *, seed: int | None = None) -> WorldDescrip
         WorldError: The file cannot be read or is invalid.
     """
     file = Path(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        msg = f"cannot read SDF world {str(file)!r}: {exc}"
-        raise WorldError(msg) from None
+    text = read_text(file, what="the SDF world", error=WorldError)
     return parse_sdf_world(text, source=str(file), base_dir=file.parent, seed=seed)

@@ -36,12 +36,12 @@ import time
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import yaml
-
 from visnav.errors import VisnavError
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.context import Context
 from visnav.graph.node import Node
+from visnav.safe_yaml import load_yaml
+from visnav.sim.guards import SimulationUnstableError
 from visnav.sim.simulator import RobotSpawn, SimStats, Simulator
 from visnav.sim.world import load_world
 
@@ -104,11 +104,10 @@ class SimulatorNode(Node):
             raise SimulatorNodeError(msg)
         world_params: dict[str, Any] = {}
         for name, text in _assignments(p["world_params"], "world_params").items():
-            try:
-                world_params[name] = yaml.safe_load(text)
-            except yaml.YAMLError:
-                msg = f"parameter world_params: {name}:={text!r} is not a YAML value"
-                raise SimulatorNodeError(msg) from None
+            source = f"parameter world_params: {name}:={text!r}"
+            world_params[name] = load_yaml(
+                text, source=source, what="the value", error=SimulatorNodeError
+            )
         world = load_world(
             str(p["world"]), params=world_params or None, seed=None if seed < 0 else seed
         )
@@ -154,7 +153,18 @@ class SimulatorNode(Node):
         return self.duration_s > 0 and self.sim.now_ns - self._sim0 >= self.duration_s * 1e9
 
     def _advance(self) -> None:
-        """Steady-timer callback: advance a batch without spinning (the executor spins)."""
+        """Steady-timer callback: advance a batch without spinning (the executor spins).
+
+        An unstable simulation stops the timer (it cannot recover) before the error goes
+        to the executor's fault boundary, which logs it (or stops the launch).
+        """
+        try:
+            self._advance_batch()
+        except SimulationUnstableError:
+            self._timer.cancel()
+            raise
+
+    def _advance_batch(self) -> None:
         sim = self.sim
         if self._done():
             self._timer.cancel()

@@ -65,6 +65,7 @@ from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Clock
 from visnav.sim.camera import CameraSensor, RenderContext, render_layout
 from visnav.sim.gazebo_specs import CameraSpec
+from visnav.sim.guards import InstabilityMonitor, check_spawn_pose, route_mujoco_warnings
 from visnav.sim.plugins import (
     CameraPlugin,
     DiffDrivePlugin,
@@ -339,6 +340,7 @@ class Simulator:
         self.real_time_factor = float(real_time_factor)
         self.world = world if isinstance(world, WorldDescription) else load_world(world)
         spawns = [r if isinstance(r, RobotSpawn) else RobotSpawn(source=r) for r in robots]
+        route_mujoco_warnings()  # not to stdout and MUJOCO_LOG.TXT in the cwd
         spec = build_world_spec(self.world)
         spec.visual.quality.offsamples = int(msaa_samples)
         placed = self._add_robots(spec, spawns)
@@ -348,6 +350,7 @@ class Simulator:
             msg = f"MuJoCo cannot compile world {self.world.name!r} with the robots: {exc}"
             raise SimulatorError(msg) from exc
         self.data = mujoco.MjData(self.model)
+        self._stability = InstabilityMonitor(self.data)
         self._rest_on_ground(placed)
         mujoco.mj_forward(self.model, self.data)
         self._dt_ns = round(float(self.model.opt.timestep) * 1e9)
@@ -404,10 +407,7 @@ class Simulator:
                 x, y, yaw = default_xy_yaw
                 pose: tuple[float, float, float, float] = (x, y, 0.0, yaw)
             else:
-                if len(spawn.spawn) != 4:
-                    msg = f"robot {name!r}: spawn is {spawn.spawn}: expected (x, y, z, yaw)"
-                    raise SimulatorError(msg)
-                pose = spawn.spawn
+                pose = check_spawn_pose(spawn.spawn, self.world, robot=name)
             handles = add_robot_to_spec(spec, desc, prefix=f"{name}/", spawn_xyz_yaw=pose)
             placed.append((desc, handles, spawn, name))
         return placed
@@ -525,7 +525,11 @@ class Simulator:
                 robot_base_frame=frame(drive.robot_base_frame),
             )
             controller = DiffDriveController(
-                model, drive_spec, base_body=handles.bodies[base_link], prefix=f"{name}/"
+                model,
+                drive_spec,
+                base_body=handles.bodies[base_link],
+                prefix=f"{name}/",
+                seed=seed_of(drive.plugin_name),
             )
             wheels = [
                 (j, int(model.joint(handles.joints[j]).qposadr[0]))
@@ -655,6 +659,7 @@ class Simulator:
             mujoco.mj_step2(model, data)
         else:
             mujoco.mj_step(model, data)
+        self._stability.check(now + self._dt_ns)
         for after in self._after:
             after(data, now)
         self._now_ns = now + self._dt_ns

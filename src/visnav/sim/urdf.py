@@ -57,6 +57,7 @@ from visnav.sim.urdf_model import (
     parse_xml,
     resolve_resource,
 )
+from visnav.textfile import read_text
 
 __all__ = [
     "MESH_EXTENSIONS",
@@ -644,9 +645,5 @@ def load_urdf(path: str | Path, *, packages: Mapping[str, Path | str] | None = N
             :func:`parse_urdf` rejects.
     """
     file = Path(path)
-    try:
-        text = file.read_text()
-    except OSError as exc:
-        msg = f"{file}: cannot read the URDF ({exc.strerror}). Fix: check the path"
-        raise RobotDescriptionError(msg) from exc
+    text = read_text(file, what="the URDF", error=RobotDescriptionError)
     return parse_urdf(text, source=str(file), base_dir=file.resolve().parent, packages=packages)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import yaml
 
+from visnav.safe_yaml import LimitedSafeLoader, load_yaml
 from visnav.sim.worldmodel import (
     Box,
     Cylinder,
@@ -30,6 +31,7 @@ from visnav.sim.worldmodel import (
     WorldDescription,
     WorldError,
 )
+from visnav.textfile import read_text
 
 if TYPE_CHECKING:
     import os
@@ -113,7 +115,7 @@ class _Map(dict[str, Any]):
     line: int | None = None
 
 
-class _LineLoader(yaml.SafeLoader):
+class _LineLoader(LimitedSafeLoader):
     """SafeLoader whose mappings carry line numbers and reject duplicate keys."""
 
 
@@ -549,22 +551,10 @@ def load_yaml_world(path: Path, *, seed: int | None = None) -> WorldDescription:
     Raises:
         WorldError: Unreadable file, malformed YAML (with line and column) or invalid content.
     """
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        msg = f"cannot read world file {str(path)!r}: {exc}"
-        raise WorldError(msg) from None
-    try:
-        data = yaml.load(text, Loader=_LineLoader)  # noqa: S506  (SafeLoader subclass)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        line = f":{mark.line + 1}" if mark is not None else ""
-        col = f" column {mark.column + 1}" if mark is not None else ""
-        msg = f"{path}{line}: malformed YAML{col}: {exc.problem or exc.context}; fix the syntax"
-        raise WorldError(msg) from None
-    except yaml.YAMLError as exc:
-        msg = f"{path}: malformed YAML: {exc}"
-        raise WorldError(msg) from None
+    text = read_text(path, what="the world file", error=WorldError)
+    data = load_yaml(
+        text, source=str(path), what="the world file", loader=_LineLoader, error=WorldError
+    )
     if data is None:
         msg = f"{path}: the world file is empty; it needs at least 'objects' or 'ground'"
         raise WorldError(msg)

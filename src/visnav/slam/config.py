@@ -116,6 +116,16 @@ class SlamConfig:
 
     def __post_init__(self) -> None:
         check_mono_settings(self.sensor, self.mono_scale)
+        for name in ("n_features", "n_levels", "grid_cell", "ba_iterations", "dense_stride"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                flag = " (--features)" if name == "n_features" else ""
+                default = getattr(SlamConfig, name)
+                text = f"{name}{flag} is {value!r}: expected a positive integer (default {default})"
+                raise SlamInputError(text)
+        if not self.scale_factor > 1.0:
+            text = f"scale_factor is {self.scale_factor!r}: expected a number > 1 (ORB: 1.2)"
+            raise SlamInputError(text)
 
 
 def check_mono_settings(sensor: str, mono_scale: str) -> None:

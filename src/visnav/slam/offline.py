@@ -29,6 +29,7 @@ from visnav.bag import BagReader
 from visnav.message_filters import ApproximateTime
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.time import time_to_ns
+from visnav.outpaths import check_output_file
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig
 from visnav.slam.errors import SlamError, SlamInputError
@@ -222,6 +223,9 @@ def slam_tum(
     """
     log = logger or _LOG
     seq = TumSequence(folder, max_difference=max_difference, logger=log)
+    out = seq.folder / "visnav_slam.txt" if output is None else (Path(output) if output else None)
+    if out is not None:
+        check_output_file(out, what="the trajectory", error=SlamInputError)
     cam = camera or seq.find_intrinsics()
     if cam is None:
         text = (
@@ -259,7 +263,6 @@ def slam_tum(
                 continue
         image_depth = None if mono_odom else depth
         collector.track(rgb, image_depth, round(frame.stamp * 1e9), odom_pose=odom)
-    out = seq.folder / "visnav_slam.txt" if output is None else (Path(output) if output else None)
     return collector.finish(out, groundtruth)
 
 
@@ -312,6 +315,13 @@ def slam_bag(
     """
     log = logger or _LOG
     bag = Path(path)
+    out = (
+        bag.with_name(bag.name + ".slam.txt")
+        if output is None
+        else (Path(output) if output else None)
+    )
+    if out is not None:
+        check_output_file(out, what="the trajectory", error=SlamInputError)
     cfg = config or SlamConfig()
     mono_odom = cfg.sensor == "mono" and cfg.mono_scale == "odometry"
     with BagReader(bag) as reader:
@@ -424,11 +434,6 @@ def slam_bag(
         groundtruth = Trajectory.from_matrices(
             [r[0] for r in gt_rows], np.stack([r[1] for r in gt_rows])
         )
-    out = (
-        bag.with_name(bag.name + ".slam.txt")
-        if output is None
-        else (Path(output) if output else None)
-    )
     return collector_final.finish(
         out, groundtruth, body_from_camera=body_from_camera, anchor=not state["anchored"]
     )

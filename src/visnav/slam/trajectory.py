@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from visnav.slam.errors import TrajectoryFormatError
+from visnav.textfile import read_text
 
 __all__ = [
     "Trajectory",
@@ -27,6 +28,7 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 _EPS = np.finfo(float).eps * 4.0
+_MIN_QUAT_NORM = 1e-6  # a TUM quaternion shorter than this is no rotation (refused)
 
 
 def quaternions_to_matrices(quaternions: ArrayLike) -> FloatArray:
@@ -163,7 +165,8 @@ def read_tum(path: str | Path) -> Trajectory:
         The trajectory, in file order.
 
     Raises:
-        TrajectoryFormatError: the file is missing, empty or has a malformed line.
+        TrajectoryFormatError: the file is missing, not UTF-8, empty, or has a
+            malformed line (not 8 numbers, a non-finite value, a zero quaternion).
     """
     p = Path(path)
     if not p.is_file():
@@ -172,27 +175,33 @@ def read_tum(path: str | Path) -> Trajectory:
         )
         raise TrajectoryFormatError(text)
     rows: list[list[float]] = []
-    with p.open(encoding="utf-8-sig") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            stripped = line.strip()
-            if not stripped or stripped.startswith("#"):
-                continue
-            parts = stripped.replace(",", " ").split()
-            if len(parts) != 8:
-                text = (
-                    f"{p}:{lineno}: {len(parts)} values in {stripped!r}; a TUM trajectory line "
-                    "has 8: timestamp tx ty tz qx qy qz qw"
-                )
-                raise TrajectoryFormatError(text)
-            try:
-                values = [float(v) for v in parts]
-            except ValueError:
-                text = f"{p}:{lineno}: non-numeric value in {stripped!r}"
-                raise TrajectoryFormatError(text) from None
-            if not all(math.isfinite(v) for v in values):
-                text = f"{p}:{lineno}: non-finite value in {stripped!r}"
-                raise TrajectoryFormatError(text)
-            rows.append(values)
+    content = read_text(p, what="the TUM trajectory", error=TrajectoryFormatError)
+    for lineno, line in enumerate(content.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        parts = stripped.replace(",", " ").split()
+        if len(parts) != 8:
+            text = (
+                f"{p}:{lineno}: {len(parts)} values in {stripped!r}; a TUM trajectory line "
+                "has 8: timestamp tx ty tz qx qy qz qw"
+            )
+            raise TrajectoryFormatError(text)
+        try:
+            values = [float(v) for v in parts]
+        except ValueError:
+            text = f"{p}:{lineno}: non-numeric value in {stripped!r}"
+            raise TrajectoryFormatError(text) from None
+        if not all(math.isfinite(v) for v in values):
+            text = f"{p}:{lineno}: non-finite value in {stripped!r}"
+            raise TrajectoryFormatError(text)
+        if math.sqrt(sum(v * v for v in values[4:8])) < _MIN_QUAT_NORM:
+            text = (
+                f"{p}:{lineno}: quaternion qx qy qz qw = {' '.join(parts[4:8])} has (near) zero "
+                "length and is no rotation; fix: write a unit quaternion (0 0 0 1 for none)"
+            )
+            raise TrajectoryFormatError(text)
+        rows.append(values)
     if not rows:
         text = f"trajectory file {p} has no poses (only comments or blank lines)"
         raise TrajectoryFormatError(text)

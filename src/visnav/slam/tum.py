@@ -15,6 +15,7 @@ the caller.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +27,7 @@ from numpy.typing import NDArray
 from visnav.perception.camera_info_yaml import read_camera_info_yaml
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.errors import AssociationError, SlamInputError
+from visnav.textfile import read_text
 
 __all__ = [
     "TUM_DEPTH_SCALE",
@@ -54,16 +56,20 @@ def read_file_list(path: Path) -> list[tuple[float, str]]:
         )
         raise SlamInputError(text)
     out: list[tuple[float, str]] = []
-    for lineno, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    text = read_text(path, what="the TUM file list", error=SlamInputError)
+    for lineno, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
         if not stripped or stripped.startswith("#"):
             continue
         parts = stripped.replace(",", " ").split()
         try:
             stamp = float(parts[0])
-        except ValueError:
+        except (ValueError, IndexError):  # IndexError: a line of only commas
             text = f"{path}:{lineno}: {stripped!r} does not start with a timestamp"
             raise SlamInputError(text) from None
+        if not math.isfinite(stamp):
+            text = f"{path}:{lineno}: timestamp {parts[0]!r} is not a finite number of seconds"
+            raise SlamInputError(text)
         if len(parts) < 2:
             text = f"{path}:{lineno}: {stripped!r} has no file name after the timestamp"
             raise SlamInputError(text)
@@ -170,6 +176,18 @@ class TumSequence:
                 len(rs),
                 max_difference,
             )
+        backwards = np.flatnonzero(np.diff(rs) < 0)
+        if len(backwards):
+            k = int(backwards[0])
+            log.warning(
+                "TUM folder %s: rgb.txt is not in time order (entry %d, stamp %.6f, comes after "
+                "%.6f); the frames are processed sorted by stamp, as TUM's associate.py does",
+                self.folder,
+                k + 2,
+                rs[k + 1],
+                rs[k],
+            )
+        pairs = sorted(pairs, key=lambda p: (rgb[p[0]][0], p[0]))
         self.frames = [
             TumFrame(rgb[i][0], self.folder / rgb[i][1], self.folder / depth[j][1], depth[j][0])
             for i, j in pairs
