@@ -174,19 +174,20 @@ def test_required_node_stops_the_launch(test_nodes_path: Path, tmp_path: Path) -
     assert not alive(talker[0].pid)
 
 
-def test_a_crashing_shared_node_stops_the_children(test_nodes_path: Path, tmp_path: Path) -> None:
+def test_a_crashing_shared_node_with_on_error_shutdown_stops_the_children(
+    test_nodes_path: Path, tmp_path: Path
+) -> None:
     del test_nodes_path
     f = write(
         tmp_path / "bomb.yaml",
         """
         launch:
           - node: {exec: launch_test_nodes:Talker, process: own, params: {rate: 5}}
-          - node: {exec: launch_test_nodes:Bomb, params: {delay: 0.5}}
+          - node: {exec: launch_test_nodes:Bomb, on_error: shutdown, params: {delay: 0.5}}
         """,
     )
     launcher = Launcher(load_launch(f), sigterm_timeout=2.0)
-    with pytest.raises(RuntimeError, match="boom"):
-        launcher.run()
+    assert launcher.run() == 1
     assert launcher.exit_code == 1
     (talker,) = {e.pid for e in launcher.events}
     assert [e.kind for e in launcher.events] == ["started", "stopped"]

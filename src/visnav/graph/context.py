@@ -1,15 +1,45 @@
-"""The graph context: in-process topics, the deterministic executor and the transport.
+"""The graph context: in-process topics, the fair executor and the transport.
 
 A :class:`Context` is the unit of "one graph participant": every node created
 with it shares in-process (zero-copy) delivery and one Zenoh session that
 connects it to the other processes of the same domain. Nothing is global: make
 a context explicitly, or let a :class:`~visnav.graph.Node` make a private one.
 
-Executor semantics (deterministic): callbacks run in the thread that calls
-:meth:`Context.spin_once`. Each call runs at most one callback: first the due
-timer with the earliest deadline (ties: creation order), otherwise the oldest
-pending message (publication order in this process; remote messages in arrival
-order). The same inputs in one process therefore give the same callback order.
+Executor policy (fair, deterministic). Callbacks run in the thread that calls
+:meth:`Context.spin_once`, one callback per call.
+
+* Pending work lives with its entity: each subscription has its QoS queue
+  (keep-last(N) keeps the newest N messages, dropping and counting the oldest
+  when a message arrives; keep-all keeps all), each timer its deadline. There
+  is no executor-wide backlog of messages.
+* Entities with work wait in one *ready ring* (first in, first out), each at
+  most once. A subscription joins the back when a message arrives and it is
+  neither in the ring nor running; a timer joins when it is found due (timers
+  are checked before each step and right after each callback; several due at
+  once join in deadline order, ties in creation order). So entities join in the
+  order their oldest pending work arrived.
+* Each step takes the entity at the front and runs one callback: the oldest
+  message of a subscription's queue, or the timer (its deadline advances,
+  skipping missed periods). After the callback, a subscription that still has
+  messages joins the back again.
+* Hence with R entities ready, pending work waits for at most R - 1 callbacks
+  of other entities: a topic that becomes ready while another topic's slow
+  callback runs is served right after that one callback, however many messages
+  the busy topic has queued.
+* The price of that bound: a turn is one callback, so a topic that shares the
+  executor with an always-ready slow callback gets one message per slow
+  callback (its keep-last queue drops the rest, counted). Work that must not
+  be throttled so belongs in another process (``process: own`` in a launch).
+  rclcpp's and rclpy's executors take one message per ready entity per wait
+  too.
+* The same inputs in one process give the same callback order (in-process
+  deliveries happen in publication order; remote samples in arrival order).
+
+Fault boundary: an exception from a callback is logged (rate limited, naming
+node, topic and type; see :mod:`visnav.graph.faults`) and spinning goes on;
+:meth:`Context.set_error_policy` makes a node's errors raise
+:class:`~visnav.graph.faults.CallbackError` instead. ``KeyboardInterrupt`` and
+``SystemExit`` always propagate.
 """
 
 from __future__ import annotations
@@ -24,13 +54,18 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from visnav.graph.errors import GraphError, TopicTypeConflictError
+from visnav.graph.faults import FaultBoundary
 from visnav.graph.graph_cache import GraphCache
 from visnav.graph.keys import LivelinessToken, liveliness_key_pattern
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
 if TYPE_CHECKING:
-    from visnav.graph.node import Node, Publisher, Subscription, Timer
+    from visnav.graph.node import Node, Publisher
+    from visnav.graph.subscription import Subscription
+    from visnav.graph.timer import Timer
+
+    _Entity = Subscription[Any] | Timer
 
 __all__ = ["ENV_TRANSPORT", "Context"]
 
@@ -75,10 +110,15 @@ class Context:
         self._config = TransportConfig.from_env(self.domain, env)
         self._zenoh: ZenohTransport | None = None
         self._zenoh_lock = threading.Lock()
-        self._cond = threading.Condition(threading.RLock())
+        self._lock = threading.RLock()
+        self._cond = threading.Condition(self._lock)
         self._topics: dict[str, _LocalTopic] = {}
-        self._ready: deque[Subscription[Any]] = deque()
+        self._ready: deque[_Entity] = deque()
+        self._queued: set[_Entity] = set()
+        self._running: _Entity | None = None
         self._timers: list[Timer] = []
+        self.faults = FaultBoundary()
+        """Callback errors so far (per callback) and the nodes' error policies."""
         self._nodes: list[Node] = []
         self._ids = itertools.count(1)
         self._spinning = False
@@ -107,7 +147,7 @@ class Context:
         for node in list(self._nodes):
             node.destroy_node()
         self._shutdown = True
-        with self._cond:
+        with self._lock:
             self._cond.notify_all()
         if self._watch is not None:
             with contextlib.suppress(Exception):
@@ -186,7 +226,7 @@ class Context:
 
     def add_publisher(self, pub: Publisher[Any]) -> None:
         """Called by :class:`Node`: attach a publisher to its in-process topic."""
-        with self._cond:
+        with self._lock:
             self._check_ok()
             topic = self._topic(pub.topic_name, pub.msg_type, "publisher")
             topic.publishers.append(pub)
@@ -194,7 +234,7 @@ class Context:
 
     def add_subscription(self, sub: Subscription[Any]) -> None:
         """Called by :class:`Node`: attach a subscription; deliver transient-local history."""
-        with self._cond:
+        with self._lock:
             self._check_ok()
             topic = self._topic(sub.topic_name, sub.msg_type, "subscription")
             topic.subscriptions.append(sub)
@@ -203,12 +243,12 @@ class Context:
                 if sub in pub.targets and pub.history is not None and sub.wants_history:
                     for msg in pub.history:
                         sub.enqueue(msg, pub.local_info() if sub.wants_info else None)
-                        self._ready.append(sub)
+                    self._schedule(sub)
             self._cond.notify_all()
 
     def remove_publisher(self, pub: Publisher[Any]) -> None:
         """Called by :class:`Node`: detach a publisher."""
-        with self._cond:
+        with self._lock:
             topic = self._topics.get(pub.topic_name)
             if topic is not None and pub in topic.publishers:
                 topic.publishers.remove(pub)
@@ -219,7 +259,7 @@ class Context:
 
         Dropping them also releases remote samples' buffers (a sender's shared memory).
         """
-        with self._cond:
+        with self._lock:
             sub.queue.clear()
             topic = self._topics.get(sub.topic_name)
             if topic is not None and sub in topic.subscriptions:
@@ -238,22 +278,24 @@ class Context:
 
     def add_timer(self, timer: Timer) -> None:
         """Called by :class:`Node`: schedule a timer."""
-        with self._cond:
+        with self._lock:
             self._timers.append(timer)
             self._cond.notify_all()
 
     def remove_timer(self, timer: Timer) -> None:
         """Called by :class:`Node`: unschedule a timer."""
-        with self._cond, contextlib.suppress(ValueError):
+        with self._lock, contextlib.suppress(ValueError):
             self._timers.remove(timer)
 
     # ------------------------------------------------------------------ delivery
     def deliver_local(self, pub: Publisher[Any], msg: Any) -> None:
         """Hand ``msg`` (same object, no copy) to the in-process subscriptions of ``pub``."""
-        with self._cond:
+        with self._lock:
             for sub in pub.targets:
                 sub.enqueue(msg, pub.local_info() if sub.wants_info else None)
-                self._ready.append(sub)
+                if sub is not self._running and sub not in self._queued:
+                    self._queued.add(sub)
+                    self._ready.append(sub)
             if pub.history is not None:
                 pub.history.append(msg)
             self._cond.notify()
@@ -262,14 +304,16 @@ class Context:
         self, sub: Subscription[Any], payload: Any, info: MessageInfo | None
     ) -> None:
         """Hand a sample (CDR payload) that arrived from another process to ``sub`` (any thread)."""
-        with self._cond:
+        with self._lock:
             sub.enqueue_remote(payload, info)
-            self._ready.append(sub)
+            if sub is not self._running and sub not in self._queued:
+                self._queued.add(sub)
+                self._ready.append(sub)
             self._cond.notify()
 
     def wake(self) -> None:
         """Wake a waiting :meth:`spin_once` (e.g. after a clock change)."""
-        with self._cond:
+        with self._lock:
             self._cond.notify_all()
 
     def _on_graph_change(self) -> None:
@@ -281,70 +325,117 @@ class Context:
             return
         if self._zenoh is None or token.zid == self._zenoh.zid:
             return
-        with self._cond:
+        with self._lock:
             topic = self._topics.get(token.topic)
             subs = [s for s in topic.subscriptions if s.wants_history] if topic else []
         for sub in subs:
             sub.on_remote_publisher(token.zid)
 
     # ------------------------------------------------------------------ executor
-    def _due_timer(self) -> Timer | None:
-        best: Timer | None = None
-        for t in self._timers:
-            if t.is_ready() and (
-                best is None or (t.next_call_ns, t.entity_id) < (best.next_call_ns, best.entity_id)
-            ):
-                best = t
-        return best
+    def set_error_policy(self, node_name: str, policy: str) -> None:
+        """Choose what follows an exception in a callback of a node.
+
+        Args:
+            node_name: the node's fully qualified name.
+            policy: ``"log"`` (default: log, rate limited, and keep spinning) or ``"raise"``
+                (log, then :meth:`spin_once` raises
+                :class:`~visnav.graph.faults.CallbackError`).
+
+        Raises:
+            GraphError: an unknown policy.
+        """
+        self.faults.set_policy(node_name, policy)
+
+    def _schedule(self, entity: _Entity) -> None:
+        """Put ``entity`` at the back of the ready ring unless it is there or running."""
+        if entity is not self._running and entity not in self._queued:
+            self._queued.add(entity)
+            self._ready.append(entity)
 
     def _wall_wait_s(self) -> float | None:
         waits = [w for t in self._timers if (w := t.wall_wait_s()) is not None]
         return max(0.0, min(waits)) if waits else None
 
-    def _take(self) -> tuple[Callable[[], None] | None, float | None]:
-        timer = self._due_timer()
-        if timer is not None:
-            return timer.prepare_call(), None
-        while self._ready:
-            sub = self._ready.popleft()
-            call = sub.take_call()
+    def _poll_timers(self) -> None:
+        """Put the timers that are due (and not in the ring) at its back, in deadline order."""
+        queued = self._queued
+        due = [t for t in self._timers if t not in queued and t.is_ready()]
+        if due:
+            due.sort(key=lambda t: (t.next_call_ns, t.entity_id))
+            for timer in due:
+                self._schedule(timer)
+
+    def _take(self) -> tuple[_Entity | None, Callable[[], None] | None, float | None]:
+        if self._timers:
+            self._poll_timers()
+        queued = self._queued
+        ready = self._ready
+        while ready:
+            entity = ready.popleft()
+            queued.discard(entity)
+            call = entity.take_call()
             if call is not None:
-                return call, None
-        return None, self._wall_wait_s()
+                self._running = entity
+                return entity, call, None
+        return None, None, self._wall_wait_s()
+
+    def _take_or_wait(self, deadline: float | None) -> tuple[_Entity, Callable[[], None]] | None:
+        """With the lock held: the next callback, waiting until ``deadline`` for one."""
+        while not self._shutdown:
+            entity, call, wait = self._take()
+            if entity is not None and call is not None:
+                return entity, call
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                return None
+            waits = [w for w in (wait, remaining) if w is not None]
+            self._cond.wait(min(waits) if waits else None)
+        return None
 
     def spin_once(self, timeout_s: float | None = None) -> bool:
         """Run at most one ready callback, waiting up to ``timeout_s`` for one.
+
+        An exception from the callback is logged and counted in :attr:`faults` (see the
+        module docstring); ``spin_once`` still returns True.
 
         Args:
             timeout_s: ``None`` waits forever, ``0`` does not wait.
 
         Returns:
             True if a callback ran.
+
+        Raises:
+            CallbackError: the callback raised and its node's error policy is ``"raise"``.
         """
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        with self._cond:
+        lock = self._lock
+        with lock:
             if self._spinning:
                 msg = "spin_once called while this context is already spinning (from a callback?)"
                 raise GraphError(msg)
             self._spinning = True
+            try:
+                taken = self._take_or_wait(deadline)
+            finally:
+                if self._running is None:
+                    self._spinning = False
+            if taken is None:
+                return False
+        entity, call = taken
         try:
-            while True:
-                with self._cond:
-                    if self._shutdown:
-                        return False
-                    call, wait = self._take()
-                    if call is None:
-                        remaining = None if deadline is None else deadline - time.monotonic()
-                        if remaining is not None and remaining <= 0:
-                            return False
-                        waits = [w for w in (wait, remaining) if w is not None]
-                        self._cond.wait(min(waits) if waits else None)
-                        continue
-                call()
-                return True
+            call()
+        except Exception as exc:  # noqa: BLE001 - the fault boundary: log and go on
+            self.faults.report(entity.node, entity.entity_id, entity.describe(), exc)
         finally:
-            with self._cond:
+            with lock:
                 self._spinning = False
+                self._running = None
+                # timers that fell due during the callback go before the busy entity
+                if self._timers:
+                    self._poll_timers()
+                if entity.pending():
+                    self._schedule(entity)
+        return True
 
     def spin_some(self, max_callbacks: int | None = None) -> int:
         """Run the callbacks that are ready now, without waiting; return how many ran."""

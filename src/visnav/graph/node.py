@@ -21,22 +21,18 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import inspect
 import logging
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
-
-from zenoh import ZBytes
 
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.context import Context
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.graph_cache import EndpointInfo
 from visnav.graph.keys import liveliness_token, topic_key
-from visnav.graph.message_info import MessageInfo, decode_attachment, encode_attachment
+from visnav.graph.message_info import MessageInfo, encode_attachment
 from visnav.graph.names import (
     RemapRule,
     parse_remap_rule,
@@ -52,15 +48,15 @@ from visnav.graph.qos import (
     check_qos_compatibility,
     to_qos,
 )
-from visnav.msgs.serde import CdrSerializer, deserialize, msg_type_name, typestore
+from visnav.graph.subscription import RemotePayload, Subscription
+from visnav.graph.timer import Timer
+from visnav.msgs.serde import CdrSerializer, msg_type_name, typestore
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import Clock as ClockMsg
 
 __all__ = ["Node", "NodeLogger", "Publisher", "RemotePayload", "Subscription", "Timer"]
 
 MsgT = TypeVar("MsgT")
-RemotePayload = ZBytes | bytes
-"""A remote sample's CDR bytes as the transport hands them over (copied out when taken)."""
 
 _CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
@@ -91,9 +87,9 @@ class NodeLogger:
 
     warn = warning
 
-    def error(self, message: str) -> None:
-        """Log at error level."""
-        self._log.error("[%s] %s", self.name, message)
+    def error(self, message: str, *, exc_info: BaseException | None = None) -> None:
+        """Log at error level (with the traceback of ``exc_info`` if given)."""
+        self._log.error("[%s] %s", self.name, message, exc_info=exc_info)
 
     def fatal(self, message: str) -> None:
         """Log at critical level."""
@@ -160,192 +156,6 @@ class Publisher(Generic[MsgT]):
     def destroy(self) -> None:
         """Remove the publisher."""
         self.node.destroy_publisher(self)
-
-
-class Subscription(Generic[MsgT]):
-    """Receives one message type on one topic; made by :meth:`Node.create_subscription`."""
-
-    def __init__(
-        self,
-        node: Node,
-        msg_type: type[MsgT],
-        topic_name: str,
-        callback: Callable[[MsgT], Any] | Callable[[MsgT, MessageInfo], Any],
-        qos: QoSProfile,
-    ) -> None:
-        self.node = node
-        self.msg_type = msg_type
-        self.type_name = msg_type_name(msg_type)
-        self.topic_name = topic_name
-        self.callback = callback
-        self.qos = qos
-        self.entity_id = node.context.next_id()
-        # (message or undecoded remote payload, info, whether it is a remote payload)
-        self.queue: deque[tuple[Any, MessageInfo | None, bool]] = deque(maxlen=qos.queue_limit)
-        self.wants_history = qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
-        self.wants_info = _takes_two_args(callback)
-        self._zsub: Any = None
-        self._zkey: str | None = None
-        self._latest_seq: dict[tuple[str, int], int] = {}
-        self._seq_lock = threading.Lock()
-
-    def enqueue(self, msg: MsgT, info: MessageInfo | None = None) -> None:
-        """Queue a message (keep-last drops the oldest)."""
-        self.queue.append((msg, info, False))
-
-    def enqueue_remote(self, payload: RemotePayload, info: MessageInfo | None = None) -> None:
-        """Queue an undecoded remote payload (keep-last drops the oldest, never decoded)."""
-        self.queue.append((payload, info, True))
-
-    def take_call(self) -> Callable[[], None] | None:
-        """Pop the oldest queued message as a ready-to-run callback, or None.
-
-        A remote payload is copied out of the transport and deserialized when the
-        callback runs (outside the context's lock), so samples that keep-last drops
-        cost nothing and each callback gets its own message.
-        """
-        if not self.queue:
-            return None
-        item, info, remote = self.queue.popleft()
-        cb: Any = self.callback
-        if remote:
-            return functools.partial(self._run_remote, item, info)
-        if self.wants_info:
-            return lambda: cb(item, info)
-        return lambda: cb(item)
-
-    def _run_remote(self, payload: RemotePayload, info: MessageInfo | None) -> None:
-        data = _as_bytes(payload)
-        try:
-            # a memoryview: rosbags slices off the CDR header, and slicing bytes would copy
-            # (and page-fault) the whole payload once more. The message's arrays are views
-            # on ``data``, a fresh buffer that only this message holds.
-            msg = deserialize(memoryview(data), self.type_name)
-        except ValueError as exc:
-            self.node.get_logger().warning(f"dropped a sample on '{self.topic_name}': {exc}")
-            return
-        cb: Any = self.callback
-        if self.wants_info:
-            cb(msg, info)
-        else:
-            cb(msg)
-
-    def on_remote(self, payload: RemotePayload, attachment: RemotePayload | None) -> None:
-        """Queue a remote sample for the executor (runs on a transport thread).
-
-        Only the small attachment is read here (for :class:`MessageInfo` and latched
-        de-duplication); the payload stays in the transport's buffer until taken.
-        """
-        info = None
-        if self.wants_info or self.wants_history:
-            received_ns = time.time_ns()
-            att = None if attachment is None else _as_bytes(attachment)
-            info = decode_attachment(att, received_ns)
-        if self.wants_history and info is not None:
-            # latched samples may arrive twice (live and from a cache query): keep each once
-            source = (info.publisher_zid, info.publisher_entity_id)
-            with self._seq_lock:
-                if info.publication_sequence_number <= self._latest_seq.get(source, 0):
-                    return
-                self._latest_seq[source] = info.publication_sequence_number
-        self.node.context.deliver_remote(self, payload, info if self.wants_info else None)
-
-    def on_remote_publisher(self, zid: str) -> None:
-        """A transient-local publisher appeared in another session: fetch its cache."""
-        z = self.node.context.zenoh
-        if z is not None and self._zkey is not None and self._zsub is not None:
-            z.fetch_latched(self._zkey, self.on_remote, zid)
-
-    def destroy(self) -> None:
-        """Remove the subscription."""
-        self.node.destroy_subscription(self)
-
-
-class Timer:
-    """Calls a callback every period of its clock (sim time when ``use_sim_time``).
-
-    Missed periods are skipped, as rcl does: after a stall or a clock jump the
-    timer fires once and keeps its phase.
-    """
-
-    def __init__(
-        self, node: Node, period_ns: int, callback: Callable[[], Any], clock: Clock
-    ) -> None:
-        if period_ns <= 0:
-            msg = f"timer period is {period_ns} ns: expected a positive period"
-            raise GraphError(msg)
-        self.node = node
-        self.timer_period_ns = period_ns
-        self.callback = callback
-        self.clock = clock
-        self.entity_id = node.context.next_id()
-        self.next_call_ns = clock.now_ns() + period_ns
-        self._canceled = False
-
-    def is_ready(self) -> bool:
-        """True when the timer is due."""
-        if self._canceled:
-            return False
-        now = self.clock.now_ns()
-        if now < self.next_call_ns - self.timer_period_ns:  # time jumped backwards
-            self.next_call_ns = now + self.timer_period_ns
-        return now >= self.next_call_ns
-
-    def wall_wait_s(self) -> float | None:
-        """Seconds until due for wall-clock timers; None for sim-time or canceled timers."""
-        if self._canceled or self.clock.ros_time_is_active:
-            return None
-        return (self.next_call_ns - self.clock.now_ns()) / 1e9
-
-    def prepare_call(self) -> Callable[[], None]:
-        """Advance the deadline and return the callback to run."""
-        now = self.clock.now_ns()
-        nxt = self.next_call_ns + self.timer_period_ns
-        if nxt <= now:
-            missed = (now - nxt) // self.timer_period_ns + 1
-            nxt += missed * self.timer_period_ns
-        self.next_call_ns = nxt
-        return self.callback
-
-    def time_until_next_call(self) -> int:
-        """Nanoseconds until the next call (negative when overdue)."""
-        return self.next_call_ns - self.clock.now_ns()
-
-    def cancel(self) -> None:
-        """Stop the timer."""
-        self._canceled = True
-
-    def is_canceled(self) -> bool:
-        """Whether the timer is canceled."""
-        return self._canceled
-
-    def reset(self) -> None:
-        """Restart: next call one period from now."""
-        self._canceled = False
-        self.next_call_ns = self.clock.now_ns() + self.timer_period_ns
-        self.node.context.wake()
-
-    def destroy(self) -> None:
-        """Remove the timer."""
-        self.node.destroy_timer(self)
-
-
-def _as_bytes(payload: RemotePayload) -> bytes:
-    """Copy a transport buffer out into a new ``bytes`` (no copy if it already is one)."""
-    return payload if isinstance(payload, bytes) else payload.to_bytes()
-
-
-def _takes_two_args(callback: Callable[..., Any]) -> bool:
-    try:
-        params = inspect.signature(callback).parameters.values()
-    except (TypeError, ValueError):
-        return False
-    positional = [
-        p
-        for p in params
-        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty
-    ]
-    return len(positional) >= 2 or any(p.kind is p.VAR_POSITIONAL for p in params)
 
 
 def _rules(remappings: Mapping[str, str] | Sequence[str] | None) -> list[RemapRule]:

@@ -90,12 +90,37 @@ def rendezvous_port(domain: int) -> int:
     return 20000 + zlib.crc32(str(domain).encode()) % 10000
 
 
+_PORTED = ("tcp", "udp", "quic", "tls")
+
+
+def _check_endpoint(ep: str, var: str) -> None:
+    """Refuse a locator Zenoh would accept silently but never listen on or connect to."""
+    example = "tcp/0.0.0.0:7447" if var == ENV_LISTEN else "tcp/192.168.1.5:7447"
+    proto, _, address = ep.partition("/")
+    address = re.split(r"[?#]", address, maxsplit=1)[0]  # Zenoh locator metadata/config
+    if not _ENDPOINT_RE.match(ep) or not address:
+        problem = "expected a Zenoh locator PROTOCOL/ADDRESS"
+    elif proto not in _PORTED:
+        return
+    else:
+        host, sep, port = address.rpartition(":")
+        lowest = 0 if var == ENV_LISTEN else 1
+        if not sep or address.endswith("]"):
+            problem = "it has no port: expected HOST:PORT after the protocol"
+        elif not host or host == "[]":
+            problem = "it has no host: expected HOST:PORT after the protocol"
+        elif not port.isdigit() or not lowest <= int(port) <= 65535:
+            problem = f"port {port!r} is not a number from {lowest} to 65535"
+        else:
+            return
+    msg = f"{var}={ep!r}: {problem} (for example {var}={example})"
+    raise TransportError(msg)
+
+
 def _endpoints(value: str, var: str) -> tuple[str, ...]:
     eps = tuple(e.strip() for e in value.split(",") if e.strip())
     for ep in eps:
-        if not _ENDPOINT_RE.match(ep):
-            msg = f"{var} has endpoint {ep!r}: expected a Zenoh locator like tcp/192.168.1.5:7447"
-            raise TransportError(msg)
+        _check_endpoint(ep, var)
     return eps
 
 

@@ -4,7 +4,9 @@ The spec (written by :class:`~visnav.launch.supervisor.Launcher`) is
 ``{"label", "parent_pid", "domain", "nodes": [NodeSpec.to_json(), ...]}``. The
 runner builds the nodes on one Context and spins until SIGINT or SIGTERM, then
 shuts down and exits 0. A node that fails to build prints ``error: ...`` and
-exits 1; an exception in a callback ends the process with its traceback (exit 1);
+exits 1. An exception in a callback is logged and the node keeps running, unless
+the node's ``on_error`` is ``restart`` or ``shutdown``: then the process prints
+``error: ...`` and exits 1 (the launcher restarts it or stops the launch);
 ``SystemExit(n)`` from a node exits ``n``. On Linux the runner also exits when
 the launcher dies (``PR_SET_PDEATHSIG``), so a killed launcher leaves no orphans.
 """
@@ -51,6 +53,7 @@ def run_nodes(specs: Sequence[Any], domain: int | str | None) -> None:
         VisnavError: a node could not be resolved or built.
     """
     from visnav.graph.context import Context  # noqa: PLC0415
+    from visnav.launch.param_check import report_unknown_parameters  # noqa: PLC0415
     from visnav.node_registry import resolve_node_class  # noqa: PLC0415
 
     classes = [resolve_node_class(s.executable) for s in specs]
@@ -59,6 +62,11 @@ def run_nodes(specs: Sequence[Any], domain: int | str | None) -> None:
             cls(s.name, context=ctx, **s.node_kwargs())
             for cls, s in zip(classes, specs, strict=True)
         ]
+        for node, s in zip(nodes, specs, strict=True):
+            report_unknown_parameters(node, s.params, where=s.source, executable=s.executable)
+        for node, spec in zip(nodes, specs, strict=True):
+            if spec.on_error != "log":
+                ctx.set_error_policy(node.get_fully_qualified_name(), "raise")
         try:
             ctx.spin()
         finally:

@@ -8,6 +8,11 @@
 * A child that exits is reported with its exit code (or signal); with ``respawn``
   it is started again after ``respawn_delay`` (at most ``respawn_max_retries``
   times); a ``required`` node that exits stops the whole launch.
+* An exception in a node's callback is logged and the node keeps running
+  (``on_error: log``, the default, as rospy). ``on_error: restart`` ends the node's
+  process on such an exception and restarts it as ``respawn`` does;
+  ``on_error: shutdown`` stops the launch (exit code 1) as ``required`` does, for a
+  shared node as for an ``own`` one.
 * :meth:`Launcher.request_stop` (the CLI's SIGINT handler) stops everything: children
   get SIGINT, then SIGTERM after ``sigterm_timeout`` and SIGKILL after
   ``sigkill_timeout`` more seconds, as ros2 launch does. Children are in their own
@@ -35,8 +40,10 @@ from pathlib import Path
 from typing import Any
 
 from visnav.errors import VisnavError
+from visnav.graph.faults import CallbackError
 from visnav.launch.description import LaunchDescription, NodeSpec
 from visnav.launch.errors import LaunchProcessError
+from visnav.launch.param_check import report_unknown_parameters
 from visnav.node_registry import (
     PENDING_NODES,
     NodeNotBuiltError,
@@ -270,6 +277,11 @@ class Launcher:
                 msg = f"{_at(spec)}node {spec.fqn} [{spec.executable}] failed to start: {exc}"
                 raise LaunchProcessError(msg) from exc
             self.shared_nodes.append(node)
+            report_unknown_parameters(
+                node, spec.params, where=spec.source, executable=spec.executable
+            )
+            if spec.on_error == "shutdown":
+                self.context.set_error_policy(node.get_fully_qualified_name(), "raise")
         names = ", ".join(s.fqn for s in shared)
         _LOG.info(
             "started %d shared node(s) in this process (pid %d): %s",
@@ -302,14 +314,16 @@ class Launcher:
         spec = child.spec
         log = _LOG.info if code == 0 else _LOG.error
         log("%s (pid %d) %s", child.name, pid, describe_exit(code))
-        if spec.required:
-            _LOG.error("%s is required: stopping the launch", child.name)
+        if spec.required or spec.on_error == "shutdown":
+            why = "is required" if spec.required else "has on_error: shutdown"
+            _LOG.error("%s %s: stopping the launch", child.name, why)
             self._failed = True
             child.done = True
             self._stop = True
             return
         retries = spec.respawn_max_retries
-        if spec.respawn and (retries is None or child.restarts < retries):
+        respawn = spec.respawn or spec.on_error == "restart"
+        if respawn and (retries is None or child.restarts < retries):
             child.respawn_at = now + spec.respawn_delay
             limit = "" if retries is None else f" of {retries}"
             _LOG.info(
@@ -321,7 +335,7 @@ class Launcher:
             )
             self._event(child, "respawning", pid, code)
             return
-        if spec.respawn:
+        if respawn:
             _LOG.error(
                 "%s will not be restarted: respawn_max_retries (%s) reached", child.name, retries
             )
@@ -362,8 +376,12 @@ class Launcher:
                 if self.context is not None:
                     try:
                         self.context.spin_once(_SPIN_S)
+                    except CallbackError as exc:
+                        _LOG.error("%s has on_error: shutdown: stopping the launch", exc.node_name)
+                        self._failed = True
+                        break
                     except Exception:
-                        _LOG.error("a shared node's callback raised: stopping every node")
+                        _LOG.error("the shared nodes' executor failed: stopping every node")
                         self._failed = True
                         raise
                 else:

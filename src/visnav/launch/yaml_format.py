@@ -25,6 +25,7 @@ import yaml
 
 from visnav.graph.names import InvalidNameError, validate_namespace, validate_node_name
 from visnav.launch.description import (
+    ON_ERROR,
     PROCESS_KINDS,
     ArgInfo,
     LaunchDescription,
@@ -35,6 +36,8 @@ from visnav.launch.errors import LaunchArgError, LaunchParseError, where
 from visnav.launch.static_tf import StaticTransformError, static_transform_params_from_args
 from visnav.launch.substitutions import SubstitutionContext, has_substitution, substitute
 from visnav.node_registry import UnknownNodeError, check_node_name
+from visnav.safe_yaml import LimitedSafeLoader, YamlError, load_yaml
+from visnav.textfile import TextFileError, read_text
 
 __all__ = [
     "ENTRY_KEYS",
@@ -67,6 +70,7 @@ ENTRY_KEYS: Mapping[str, frozenset[str]] = {
             "respawn_delay",
             "respawn_max_retries",
             "required",
+            "on_error",
             "if",
             "unless",
         }
@@ -89,8 +93,8 @@ class _Map(dict[str, Any]):
     line: int | None = None
 
 
-class _LineLoader(yaml.SafeLoader):
-    """SafeLoader whose mappings are :class:`_Map` with their line; duplicate keys refused."""
+class _LineLoader(LimitedSafeLoader):
+    """Safe loader (alias limits) whose mappings are :class:`_Map` with a line; no dup keys."""
 
 
 def _construct_map(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
@@ -113,24 +117,14 @@ _LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _con
 def parse_yaml_text(text: str, source: str) -> Any:
     """Parse YAML, keeping mapping lines; errors name the file and line.
 
+    Loaded with visnav's alias limits (:mod:`visnav.safe_yaml`).
+
     Raises:
-        LaunchParseError: the text is not valid YAML.
+        LaunchParseError: the text is not valid YAML or breaks a limit.
     """
-    loader = _LineLoader(text)
-    loader.name = source
-    try:
-        return loader.get_single_data()
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = " ".join(str(exc.problem or exc.context or "invalid YAML").split())
-        msg = f"{source}{line}: the launch file does not parse as YAML: {problem}"
-        raise LaunchParseError(msg) from None
-    except yaml.YAMLError as exc:
-        msg = f"{source}: the launch file does not parse as YAML: {exc}"
-        raise LaunchParseError(msg) from None
-    finally:
-        loader.dispose()
+    return load_yaml(
+        text, source=source, what="the launch file", loader=_LineLoader, error=LaunchParseError
+    )
 
 
 # --------------------------------------------------------------------------- helpers
@@ -185,8 +179,8 @@ def _typed(text: str) -> Any:
     if not text.strip():
         return text
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
+        value = load_yaml(text, source="a substituted value")
+    except YamlError:
         return text
     if isinstance(value, bool | int | float | str):
         return value
@@ -392,7 +386,16 @@ class _YamlInterpreter:
             )
             raise LaunchArgError(msg)
         if "choices" in body:
-            choices = [_arg_text(c) for c in body["choices"] or []]
+            raw = body["choices"]
+            if not isinstance(raw, list) or not all(
+                isinstance(c, bool | int | float | str) for c in raw
+            ):
+                msg = (
+                    f"{self.at(body.line)}arg {name!r}: choices is {raw!r}: expected a list "
+                    "of values; fix: write e.g. choices: [low, high]"
+                )
+                raise LaunchParseError(msg)
+            choices = [_arg_text(c) for c in raw]
             if value not in choices:
                 close = difflib.get_close_matches(value, choices, n=1)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
@@ -513,10 +516,9 @@ class _YamlInterpreter:
         if not path.is_absolute():
             path = self.path.parent / path
         try:
-            text = path.read_text()
-        except OSError as exc:
-            msg = f"{self.at(line)}parameter file {path}: cannot read it ({exc.strerror})"
-            raise LaunchParseError(msg) from None
+            text = read_text(path, what="the parameter file")
+        except TextFileError as exc:
+            raise LaunchParseError(f"{self.at(line)}{exc}") from None
         data = parse_yaml_text(text, str(path))
         if not isinstance(data, Mapping):
             msg = f"{path}: a parameter file maps node names to {{ros__parameters: ...}}"
@@ -524,6 +526,16 @@ class _YamlInterpreter:
         name = fqn.rsplit("/", 1)[-1]
         keys = {fqn, fqn.lstrip("/"), name, "/**", "**", f"/**/{name}"}
         out: dict[str, Any] = {}
+        if not any(isinstance(v, Mapping) and "ros__parameters" in v for v in data.values()):
+            # a flat file (ROS 1's rosparam layout): every key is a parameter of this node
+            _flatten("", data, out)
+            return out
+        if not keys & set(data):
+            msg = (
+                f"{path}: no section for node {fqn}: the file has {', '.join(map(str, data))}; "
+                f"name the section {name!r}, {fqn!r} or '/**' (ROS 2 parameter file format)"
+            )
+            raise LaunchParseError(msg)
         for key, section in data.items():
             if key not in keys:
                 continue
@@ -571,10 +583,15 @@ class _YamlInterpreter:
                 self.text(body["use_sim_time"], scope, line), "use_sim_time", at
             )
         respawn = parse_bool(self.text(body.get("respawn", False), scope, line), "respawn", at)
+        on_error = self.text(body.get("on_error", "log"), scope, line)
+        if on_error not in ON_ERROR:
+            msg = f"{at}on_error is {on_error!r}: expected one of {', '.join(ON_ERROR)}"
+            raise LaunchParseError(msg)
         if "process" in body:
             process = self.process(body["process"], scope, line)
         else:
-            process = "own" if respawn else (scope.process or "shared")
+            own = respawn or on_error == "restart"
+            process = "own" if own else (scope.process or "shared")
         delay = self.number(body.get("respawn_delay", 0.0), scope, line, "respawn_delay")
         retries: int | None = None
         if body.get("respawn_max_retries") is not None:
@@ -596,6 +613,7 @@ class _YamlInterpreter:
                 required=parse_bool(
                     self.text(body.get("required", False), scope, line), "required", at
                 ),
+                on_error=on_error,
                 source=f"{self.source}:{line}",
             )
         )
@@ -661,11 +679,10 @@ def load_yaml_launch(
     """
     file = Path(path)
     try:
-        text = file.read_text()
-    except OSError as exc:
+        text = read_text(file, what="the launch file")
+    except TextFileError as exc:
         via = f" (included from {chain[-1]})" if chain else ""
-        msg = f"{file}: cannot read the launch file ({exc.strerror}){via}"
-        raise LaunchParseError(msg) from None
+        raise LaunchParseError(f"{exc}{via}") from None
     data = parse_yaml_text(text, str(file))
     if not isinstance(data, _Map) or "launch" not in data:
         msg = (

@@ -40,6 +40,7 @@ from visnav.msgs.types import Header, Image, Time
 
 __all__ = [
     "bytes_per_pixel",
+    "check_image",
     "encoding_dtype",
     "has_alpha",
     "image_to_numpy",
@@ -79,6 +80,8 @@ _NAMED: dict[str, tuple[str, int]] = {
 
 _DEPTHS = {"8U": "u1", "8S": "i1", "16U": "u2", "16S": "i2", "32S": "i4", "32F": "f4", "64F": "f8"}
 _GENERIC = re.compile(r"(8U|8S|16U|16S|32S|32F|64F)(?:C([0-9]+))?")
+
+_YUV422 = frozenset({"yuv422", "uyvy", "yuv422_yuy2", "yuyv"})
 
 # Names offered in "did you mean" hints.
 _SUGGESTIONS = (
@@ -205,24 +208,22 @@ def _data_bytes(data: Any, field: str) -> NDArray[np.uint8]:
         raise MessageError(text) from exc
 
 
-def image_to_numpy(msg: Image) -> NDArray[Any]:
-    """Return the pixels of an image message as a numpy array (cv_bridge ``passthrough``).
-
-    Args:
-        msg: the ``sensor_msgs/Image``.
-
-    Returns:
-        An (H, W) array for one-channel encodings, (H, W, C) otherwise, dtype per
-        the encoding in native byte order. When ``step`` has no row padding and
-        no byte swap is needed this is a view on ``msg.data`` (read-only if the
-        data is); otherwise a fresh contiguous array.
-
-    Raises:
-        MessageError: unknown encoding, ``step`` smaller than one row, or
-            ``data`` not ``step * height`` bytes long.
-    """
+def _checked(msg: Image) -> tuple[_Format, NDArray[np.uint8]]:
+    """Validate an image message; return its format and its data bytes."""
     fmt = _format(msg.encoding, "Image.encoding")
     height, width, step = int(msg.height), int(msg.width), int(msg.step)
+    if height <= 0 or width <= 0:
+        text = (
+            f"Image.width x Image.height is {width}x{height} (encoding {msg.encoding!r}): "
+            "expected at least 1x1 pixels; the publisher sent an empty image"
+        )
+        raise MessageError(text)
+    if msg.encoding in _YUV422 and width % 2:
+        text = (
+            f"Image.width is {width} for encoding {msg.encoding!r}: expected an even width "
+            "(4:2:2 packs two pixels in four bytes)"
+        )
+        raise MessageError(text)
     row = width * fmt.bpp
     if step < row:
         text = (
@@ -239,6 +240,41 @@ def image_to_numpy(msg: Image) -> NDArray[Any]:
             "the message is truncated or its height/step are wrong"
         )
         raise MessageError(text)
+    return fmt, buf
+
+
+def check_image(msg: Image) -> None:
+    """Check that an image message can be read (what :func:`image_to_numpy` checks).
+
+    Built-in nodes call this (or :func:`image_to_numpy`) on every image before
+    OpenCV sees it, also where they pass an image on unchanged.
+
+    Raises:
+        MessageError: unknown encoding, an empty (0-pixel) image, an odd width for
+            4:2:2 YUV, ``step`` smaller than one row, or ``data`` not
+            ``step * height`` bytes long; the message names the field and the value.
+    """
+    _checked(msg)
+
+
+def image_to_numpy(msg: Image) -> NDArray[Any]:
+    """Return the pixels of an image message as a numpy array (cv_bridge ``passthrough``).
+
+    Args:
+        msg: the ``sensor_msgs/Image``.
+
+    Returns:
+        An (H, W) array for one-channel encodings, (H, W, C) otherwise, dtype per
+        the encoding in native byte order. When ``step`` has no row padding and
+        no byte swap is needed this is a view on ``msg.data`` (read-only if the
+        data is); otherwise a fresh contiguous array.
+
+    Raises:
+        MessageError: an image :func:`check_image` refuses.
+    """
+    fmt, buf = _checked(msg)
+    height, width, step = int(msg.height), int(msg.width), int(msg.step)
+    row = width * fmt.bpp
     dtype = fmt.dtype.newbyteorder(">" if msg.is_bigendian else "<")
     if fmt.channels == 1:
         shape: tuple[int, ...] = (height, width)

@@ -25,6 +25,7 @@ from visnav import message_filters
 from visnav.errors import VisnavError
 from visnav.graph.node import Node
 from visnav.graph.qos import qos_profile_sensor_data
+from visnav.msgs.image import check_image
 from visnav.msgs.types import CameraInfo, Image, LaserScan, PointCloud2
 from visnav.perception.depth_image_proc import PointCloudXyz, PointCloudXyzrgb, convert_metric
 from visnav.perception.depth_to_scan import DepthImageToLaserScan
@@ -81,6 +82,7 @@ class ImageProcNode(_PerceptionNode):
 
     def _on_image(self, raw: Image, info: CameraInfo) -> None:
         try:
+            check_image(raw)  # also where image_mono / image_color pass the message on
             mono = image_mono(raw)
             color = image_color(raw, algorithm=self.debayer)
             self._pubs["image_mono"].publish(mono)
