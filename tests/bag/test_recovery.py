@@ -17,7 +17,9 @@ from visnav.graph import Context, Node
 from visnav.msgs import String, serialize
 
 
-@pytest.mark.parametrize("fmt", ["mcap", pytest.param("ros1", marks=[pytest.mark.slow, pytest.mark.ci])])
+@pytest.mark.parametrize(
+    "fmt", ["mcap", pytest.param("ros1", marks=[pytest.mark.slow, pytest.mark.ci])]
+)
 def test_sigkilled_recorder_leaves_a_readable_bag(tmp_path: Path, domain: int, fmt: str) -> None:
     out = tmp_path / "killed"
     env = {**os.environ, "VISNAV_DOMAIN": str(domain)}

@@ -9,6 +9,7 @@ Library entry points (the ``visnav bag`` verbs wrap them):
 * :class:`BagRecorder` (``record``), :class:`BagPlayer` (``play``),
 * :func:`read_bag` / :class:`BagReader`, :func:`bag_info` (``info``),
 * :func:`convert_bag` (``convert``), :func:`reindex_bag` (``reindex``),
+* damaged or unclosed bags are read by scanning (:mod:`visnav.bag.recovery`), with a warning,
 * :class:`BagWriter` for writing serialized messages directly.
 """
 
@@ -20,6 +21,7 @@ from visnav.bag.errors import (
     BagExistsError,
     BagNotFoundError,
     CorruptBagError,
+    RecordError,
     TopicNotInBagError,
     UnknownStorageError,
 )
@@ -47,6 +49,7 @@ __all__ = [
     "CorruptBagError",
     "PlayStats",
     "RawMessage",
+    "RecordError",
     "RecordedTopic",
     "TopicMeta",
     "TopicNotInBagError",

@@ -5,6 +5,9 @@ topic with the bag's own definitions; between ROS 1 and ROS 2 the bytes are conv
 (``std_msgs/Header.seq`` added or dropped) for the types visnav knows, and topics of other
 types are left out with a warning (``ConvertResult.skipped``). Record times and offered QoS
 (ROS 1 latching) are kept.
+
+The output is written under a hidden temporary name next to it and renamed into place only
+when it is complete, so a failed or killed conversion never leaves a bag that looks whole.
 """
 
 from __future__ import annotations
@@ -12,14 +15,15 @@ from __future__ import annotations
 import dataclasses
 import logging
 import shutil
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from visnav.bag.errors import BagExistsError
-from visnav.bag.info import bag_info
+from visnav.bag.errors import BagError, BagExistsError
+from visnav.bag.info import stored_compression
 from visnav.bag.reader import BagReader, TopicMeta
-from visnav.bag.storage import COMPRESSIONS, check_format
-from visnav.bag.writer import BagWriter
+from visnav.bag.storage import COMPRESSIONS, check_format, detect_layout
+from visnav.bag.writer import BagWriter, default_bag_path
 
 __all__ = ["ConvertResult", "convert_bag", "reindex_bag"]
 
@@ -35,12 +39,15 @@ class ConvertResult:
         message_count: messages written.
         topics: topics written.
         skipped: topics left out, with the reason.
+        recovery: what reading the input by scanning left out (damaged chunks) or why it
+            scanned ('' when the input was read through its intact index).
     """
 
     path: Path
     message_count: int
     topics: tuple[str, ...]
     skipped: dict[str, str]
+    recovery: str = ""
 
 
 def _plan(meta: TopicMeta, out_ros1: bool) -> tuple[str, str | None] | str:
@@ -78,25 +85,56 @@ def convert_bag(
     fmt: str = "mcap",
     compression: str = "none",
     topics: Sequence[str] | None = None,
+    scan: bool = False,
 ) -> ConvertResult:
     """Write the messages of ``src`` into a new bag ``dst``.
 
     Args:
-        src: the input bag (any format visnav reads; unclosed files are recovered).
-        dst: the output (directory for rosbag2, ``.bag`` file for ROS 1).
+        src: the input bag (any format visnav reads; unclosed or damaged files are
+            recovered with a warning).
+        dst: the output (directory for rosbag2, ``.bag`` file for ROS 1). It appears only
+            once complete: the bag is written under a hidden temporary name beside it.
         fmt: output format, ``"mcap"``, ``"ros1"`` or ``"sqlite3"``.
         compression: output compression (see :class:`~visnav.bag.writer.BagWriter`).
         topics: only these topics (default all).
+        scan: read the input by scanning its storage files (skipping damaged chunks)
+            instead of through its index (see :class:`~visnav.bag.reader.BagReader`).
 
     Returns:
         What was written.
 
     Raises:
-        BagError: unreadable input, existing output, unknown format or topic.
+        BagError: unreadable input or message, existing output, unknown format or topic.
     """
     fmt, compression = check_format(fmt, compression)
+    final = default_bag_path(dst, fmt)
+    if final.exists():
+        msg = f"bag output '{final}' exists already: choose another name or remove it"
+        raise BagExistsError(msg)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp_dir = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
+    try:
+        result = _convert(src, tmp_dir / final.name, fmt, compression, topics, scan=scan)
+        if final.exists():
+            msg = f"bag output '{final}' appeared while converting: choose another name"
+            raise BagExistsError(msg)
+        result.path.rename(final)
+    finally:
+        shutil.rmtree(tmp_dir, ignore_errors=True)
+    return dataclasses.replace(result, path=final)
+
+
+def _convert(
+    src: str | Path,
+    dst: Path,
+    fmt: str,
+    compression: str,
+    topics: Sequence[str] | None,
+    *,
+    scan: bool,
+) -> ConvertResult:
     out_ros1 = fmt == "ros1"
-    with BagReader(src) as reader:
+    with BagReader(src, scan=scan) as reader:
         names = reader.check_topics(topics)
         skipped: dict[str, str] = {}
         plans: dict[str, tuple[str, str | None]] = {}
@@ -126,10 +164,15 @@ def convert_bag(
                 data = raw.data if (ser == "ros1") == reader.is_ros1 else reader.to_cdr(raw)
                 if data is None:  # pragma: no cover - excluded by _plan
                     continue
-                writer.write(handles[raw.topic], raw.t_ns, data)
+                try:
+                    writer.write(handles[raw.topic], raw.t_ns, data)
+                except BagError as exc:
+                    msg = f"converting '{reader.path}': {exc}"
+                    raise type(exc)(msg) from exc
                 count += 1
             path = writer.path
-    return ConvertResult(path, count, tuple(plans), skipped)
+        recovery = reader.report.summary() if scan else reader.recovery
+    return ConvertResult(path, count, tuple(plans), skipped, recovery)
 
 
 def _backup_name(path: Path) -> Path:
@@ -150,9 +193,11 @@ def reindex_bag(path: str | Path) -> ConvertResult:
 
     Like ``ros2 bag reindex`` / ``rosbag reindex``, but the storage file itself is rewritten
     (same format and compression) from what its complete chunks hold, so every reader opens
-    it afterwards. The original is renamed ``<name>.orig`` during the rewrite and removed
-    after it succeeded (restored if it failed). A rosbag2 directory gets a correct
-    ``metadata.yaml``.
+    it afterwards. MCAP and ROS 1 files are read by scanning, not through their index, so a
+    damaged index or summary is rebuilt and chunks that fail their CRC (or do not decode) are
+    left out (``ConvertResult.recovery`` says which). The original is renamed
+    ``<name>.orig`` during the rewrite and removed after it succeeded (restored if it
+    failed). A rosbag2 directory gets a correct ``metadata.yaml``.
 
     Args:
         path: the bag.
@@ -163,10 +208,10 @@ def reindex_bag(path: str | Path) -> ConvertResult:
     Raises:
         BagError: the bag does not read, or the backup name exists.
     """
-    info = bag_info(path)
-    src = info.path
-    fmt = info.storage
-    compression = info.compression.split(" ")[0]
+    layout = detect_layout(path)
+    src = layout.path
+    fmt = layout.storage
+    compression = stored_compression(layout).split(" ")[0]
     if compression not in ("none", "zstd", "lz4", "bz2") or compression not in COMPRESSIONS[fmt]:
         compression = "none"
     backup = _backup_name(src)
@@ -177,7 +222,7 @@ def reindex_bag(path: str | Path) -> ConvertResult:
     out = src.with_name(src.name + ".reindex") if bare_mcap else src
     src.rename(backup)
     try:
-        result = convert_bag(backup, out, fmt=fmt, compression=compression)
+        result = convert_bag(backup, out, fmt=fmt, compression=compression, scan=fmt != "sqlite3")
         if bare_mcap:
             (out / f"{out.name}_0.mcap").rename(src)
             shutil.rmtree(out)
@@ -188,4 +233,4 @@ def reindex_bag(path: str | Path) -> ConvertResult:
         backup.rename(src)
         raise
     _remove(backup)
-    return result
+    return dataclasses.replace(result, recovery=result.recovery.replace(str(backup), str(src)))

@@ -9,6 +9,7 @@ __all__ = [
     "BagExistsError",
     "BagNotFoundError",
     "CorruptBagError",
+    "RecordError",
     "TopicNotInBagError",
     "UnknownStorageError",
 ]
@@ -36,3 +37,7 @@ class CorruptBagError(BagError, ValueError):
 
 class TopicNotInBagError(BagError, LookupError):
     """A topic asked for is not in the bag (the message suggests the closest names)."""
+
+
+class RecordError(BagError, ValueError):
+    """A recording cannot start (bad option) or cannot go on (the bag cannot be written)."""

@@ -2,23 +2,29 @@
 
 Counts, start/end and per-topic first/last times and sizes come from one pass over the
 serialized messages (no deserialization), so the figures hold for bags with no index or
-statistics too (including recovered, unclosed ones).
+statistics too (including recovered ones: unclosed, a damaged index or summary, or a chunk
+that fails its CRC, which is skipped).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import datetime
+import logging
 import struct
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from visnav.bag.errors import CorruptBagError
+from visnav.bag.metadata import read_drops
 from visnav.bag.reader import BagReader
 from visnav.bag.storage import ROS1_MAGIC, BagLayout
 
-__all__ = ["BagInfo", "TopicStats", "bag_info", "format_info"]
+_log = logging.getLogger("visnav.bag")
+
+__all__ = ["BagInfo", "TopicStats", "bag_info", "format_info", "stored_compression"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,8 +68,11 @@ class BagInfo:
         end_ns: last message time.
         message_count: messages.
         topics: per-topic statistics, sorted by name.
-        complete: False when a storage file was never closed (figures cover what was
-            recovered).
+        complete: False when the bag was read by scanning: a storage file was never closed,
+            or its index, summary or a chunk is damaged (figures cover what was recovered).
+        recovery: why it was read by scanning ('' when complete).
+        drops: messages the recorder lost per topic (its queue overflowed), from the bag's
+            ``visnav_recorder`` metadata; empty when none were lost or the bag has none.
     """
 
     path: Path
@@ -76,6 +85,8 @@ class BagInfo:
     message_count: int
     topics: tuple[TopicStats, ...]
     complete: bool
+    recovery: str = ""
+    drops: dict[str, int] = dataclasses.field(default_factory=dict)
 
     @property
     def duration_ns(self) -> int:
@@ -102,6 +113,8 @@ class BagInfo:
             "size_bytes": self.size_bytes,
             "compression": self.compression,
             "complete": self.complete,
+            "recovery": self.recovery,
+            "drops": dict(self.drops),
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,
             "duration_s": self.duration_ns / 1e9,
@@ -173,7 +186,7 @@ def _mcap_compression(path: Path) -> str:
             f.seek(length, 1)
 
 
-def _compression(layout: BagLayout) -> str:
+def stored_compression(layout: BagLayout) -> str:
     """The bag's compression as stored (``"unknown"`` when the bytes there are damaged)."""
     try:
         return _stored_compression(layout)
@@ -195,11 +208,28 @@ def _stored_compression(layout: BagLayout) -> str:
     return "none"
 
 
+def _accumulate(reader: BagReader) -> dict[str, list[int]]:
+    """``[count, bytes, first, last]`` per topic, in one pass over the serialized messages."""
+    acc: dict[str, list[int]] = {}
+    for raw in reader.raw_messages():
+        a = acc.setdefault(raw.topic, [0, 0, 0, 0])
+        if a[0] == 0:
+            a[2] = raw.t_ns
+        a[0] += 1
+        a[1] += len(raw.data)
+        a[2] = min(a[2], raw.t_ns)
+        a[3] = max(a[3], raw.t_ns)
+    for name in reader.topics:  # after the pass: a fallback to scanning may change the topics
+        acc.setdefault(name, [0, 0, 0, 0])
+    return acc
+
+
 def bag_info(path: str | Path) -> BagInfo:
     """Summarise a bag.
 
     Args:
-        path: the bag (any format visnav reads; unclosed files are recovered).
+        path: the bag (any format visnav reads; unclosed or damaged files are recovered
+            with a warning, see :class:`~visnav.bag.reader.BagReader`).
 
     Returns:
         The summary.
@@ -208,50 +238,68 @@ def bag_info(path: str | Path) -> BagInfo:
         BagNotFoundError, UnknownStorageError, CorruptBagError.
     """
     with BagReader(path) as reader:
-        layout = reader.layout
-        acc: dict[str, list[int]] = {name: [0, 0, 0, 0] for name in reader.topics}
-        for raw in reader.raw_messages():
-            a = acc[raw.topic]
-            if a[0] == 0:
-                a[2] = raw.t_ns
-            a[0] += 1
-            a[1] += len(raw.data)
-            a[2] = min(a[2], raw.t_ns)
-            a[3] = max(a[3], raw.t_ns)
-        stats = []
-        for name in sorted(acc):
-            count, size, first, last = acc[name]
-            meta = reader.topics[name]
-            freq = (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else 0.0
-            stats.append(
-                TopicStats(
-                    name,
-                    meta.type_name,
-                    count,
-                    size,
-                    first,
-                    last,
-                    freq,
-                    meta.serialization,
-                    tuple(_qos_short(q) for q in meta.qos),
+        try:
+            acc = _accumulate(reader)
+        except CorruptBagError as exc:
+            if reader.recovery or reader.layout.storage not in ("mcap", "ros1"):
+                raise
+            # a damaged chunk behind an intact index: summarise what a scan recovers
+            reader.close()
+            cause = str(exc.__cause__ or exc)
+            with BagReader(path, scan=True) as scanned:
+                acc = _accumulate(scanned)
+                skipped = scanned.report.summary()
+                _log.warning(
+                    "bag '%s': its data does not decode (%s); recovered %d messages by scanning "
+                    "the file%s; 'visnav bag reindex %s' rewrites it",
+                    scanned.path,
+                    cause,
+                    sum(a[0] for a in acc.values()),
+                    f" ({skipped})" if skipped else "",
+                    scanned.path,
                 )
+                return _summarise(scanned, acc, f"damaged data ({skipped or cause})")
+        return _summarise(reader, acc, reader.recovery)
+
+
+def _summarise(reader: BagReader, acc: dict[str, list[int]], recovery: str) -> BagInfo:
+    layout = reader.layout
+    stats = []
+    for name in sorted(acc):
+        count, size, first, last = acc[name]
+        meta = reader.topics[name]
+        freq = (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else 0.0
+        stats.append(
+            TopicStats(
+                name,
+                meta.type_name,
+                count,
+                size,
+                first,
+                last,
+                freq,
+                meta.serialization,
+                tuple(_qos_short(q) for q in meta.qos),
             )
-        total = sum(s.count for s in stats)
-        start = min((s.first_ns for s in stats if s.count), default=0)
-        end = max((s.last_ns for s in stats if s.count), default=0)
-        on_disk = [layout.path] if layout.path.is_file() else list(layout.path.iterdir())
-        return BagInfo(
-            path=layout.path,
-            storage=layout.storage,
-            files=tuple(f.name for f in layout.files),
-            size_bytes=sum(p.stat().st_size for p in on_disk if p.is_file()),
-            compression=_compression(layout),
-            start_ns=start,
-            end_ns=end,
-            message_count=total,
-            topics=tuple(stats),
-            complete=layout.complete,
         )
+    total = sum(s.count for s in stats)
+    start = min((s.first_ns for s in stats if s.count), default=0)
+    end = max((s.last_ns for s in stats if s.count), default=0)
+    on_disk = [layout.path] if layout.path.is_file() else list(layout.path.iterdir())
+    return BagInfo(
+        path=layout.path,
+        storage=layout.storage,
+        files=tuple(f.name for f in layout.files),
+        size_bytes=sum(p.stat().st_size for p in on_disk if p.is_file()),
+        compression=stored_compression(layout),
+        start_ns=start,
+        end_ns=end,
+        message_count=total,
+        topics=tuple(stats),
+        complete=not recovery,
+        recovery=recovery,
+        drops=read_drops(layout),
+    )
 
 
 def _size(n: float) -> str:
@@ -288,9 +336,12 @@ def format_info(info: BagInfo) -> str:
     lines.append(f"Messages:          {info.message_count}")
     if not info.complete:
         lines.append(
-            "Note:              not closed (recording killed?): figures cover the complete "
-            "chunks; 'visnav bag reindex' rewrites it"
+            f"Note:              {info.recovery or 'not closed'}: figures cover what a scan "
+            "recovered; 'visnav bag reindex' rewrites it"
         )
+    if info.drops:
+        dropped = ", ".join(f"{t}: {n}" for t, n in sorted(info.drops.items()))
+        lines.append(f"Recorder drops:    {sum(info.drops.values())} ({dropped})")
     if not info.topics:
         lines.append("Topic information: (none)")
         return "\n".join(lines)

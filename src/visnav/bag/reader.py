@@ -3,8 +3,10 @@
 Complete bags are read with ``rosbags.highlevel.AnyReader`` (what ROS itself writes: ROS 1
 bags, rosbag2 with ``sqlite3`` or ``mcap`` storage, Humble's definition-less SQLite bags via
 visnav's type store). A storage file that was not closed (a killed recorder: no MCAP footer,
-no ROS 1 index) is read record by record up to its last complete chunk
-(:mod:`visnav.bag.recovery`), in file order.
+no ROS 1 index), or whose index or summary does not decode, is read record by record up to
+its last complete chunk (:mod:`visnav.bag.recovery`), in file order, skipping chunks whose
+bytes are damaged; a warning on the ``visnav.bag`` logger names the file, the reason and the
+number of messages recovered (``BagReader.recovery`` holds the reason).
 
 Messages whose type has the same wire format as visnav's come out as visnav message
 objects (ROS 1 ones converted, ``Header.seq`` dropped); other types come out as ``rosbags``
@@ -18,8 +20,10 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import difflib
+import logging
 import sqlite3
 import struct
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -40,12 +44,20 @@ from rosbags.typesys.store import Typestore
 
 from visnav.bag.errors import BagError, CorruptBagError, TopicNotInBagError
 from visnav.bag.qos import latched_qos
-from visnav.bag.recovery import RecoveredChannel, RecoveredMessage, scan_mcap, scan_ros1
+from visnav.bag.recovery import (
+    RecoveredChannel,
+    RecoveredMessage,
+    ScanReport,
+    scan_mcap,
+    scan_ros1,
+)
 from visnav.bag.storage import BagLayout, detect_layout
 from visnav.bag.typeconv import same_wire_format
 from visnav.msgs.serde import deserialize, typestore
 
 __all__ = ["BagMessage", "BagReader", "RawMessage", "TopicMeta", "read_bag"]
+
+_log = logging.getLogger("visnav.bag")
 
 _READ_ERRORS = (
     AnyReaderError,
@@ -112,6 +124,16 @@ class TopicMeta:
     native: bool
 
 
+def _why(exc: BaseException) -> str:
+    """The root cause's text (or its type name when it has none)."""
+    while exc.__cause__ is not None:
+        exc = exc.__cause__
+    text = str(exc)
+    if len(exc.args) == 1 and isinstance(exc.args[0], tuple):  # rosbags: ('Could not ...',)
+        text = ", ".join(map(str, exc.args[0]))
+    return text or type(exc).__name__
+
+
 def _suggest(name: str, names: Iterable[str]) -> str:
     close = difflib.get_close_matches(name, list(names), n=3, cutoff=0.4)
     return f"; did you mean {', '.join(close)}?" if close else ""
@@ -158,8 +180,15 @@ class BagReader:
 
     Args:
         path: a rosbag2 directory, an ``.mcap``/``.db3`` file or a ROS 1 ``.bag`` file.
-        recover: read files that were never closed up to their last complete chunk
-            (default); False raises :class:`CorruptBagError` for them instead.
+        recover: read files that were never closed, or whose index or summary does not
+            decode, by scanning them up to their last complete chunk (default, with a
+            warning); False raises :class:`CorruptBagError` for them instead.
+        scan: read MCAP and ROS 1 files by scanning even when their index is intact (what
+            ``bag reindex`` does: chunks that fail their CRC are skipped, not fatal).
+
+    Attributes:
+        recovery: why the bag was read by scanning ('' when it was read through its index).
+        report: what the scan skipped (damaged chunks) or where it stopped.
 
     Raises:
         BagNotFoundError: nothing at ``path``.
@@ -167,7 +196,7 @@ class BagReader:
         CorruptBagError: the bag does not decode.
     """
 
-    def __init__(self, path: str | Path, *, recover: bool = True) -> None:
+    def __init__(self, path: str | Path, *, recover: bool = True, scan: bool = False) -> None:
         self.layout: BagLayout = detect_layout(path)
         self.path = self.layout.path
         self._any: AnyReader | None = None
@@ -177,28 +206,67 @@ class BagReader:
         self.start_ns = 0
         self.end_ns = 0
         self.message_count = 0
+        self.recovery = ""
+        self.report = ScanReport()
+        self._recover = recover and self.layout.storage in ("mcap", "ros1")
         if not self.layout.complete and not recover:
             msg = (
                 f"bag '{self.path}' was not closed (recording killed?): "
                 f"{', '.join(map(str, self.layout.incomplete))}; run 'visnav bag reindex'"
             )
             raise CorruptBagError(msg)
+        if not self.layout.complete:
+            names = ", ".join(str(f) for f in self.layout.incomplete)
+            metas = self._recover_from(f"not closed (recording killed?): {names}")
+        elif scan and self._recover:
+            metas = self._recover_from("read by scanning (as asked)", warn=False)
+        else:
+            try:
+                metas = self._open_any()
+            except CorruptBagError as exc:
+                if not self._recover:
+                    raise
+                metas = self._recover_from(f"its index does not decode ({_why(exc)})")
+        self._topics = {m.name: _Topic(m, self._store) for m in metas}
+
+    def _recover_from(self, reason: str, *, warn: bool = True) -> list[TopicMeta]:
+        """Open by scanning; warn with the file, the reason and the count recovered."""
+        self._close_any()
+        self._conns = {}
+        self._store = get_typestore(Stores.EMPTY)
+        self.recovery = reason
         try:
-            metas = self._open_any() if self.layout.complete else self._open_recovered()
+            metas = self._open_recovered()
         except BagError:
             raise
         except _READ_ERRORS as exc:
             raise self._fail(exc) from exc
-        self._topics = {m.name: _Topic(m, self._store) for m in metas}
+        extra = self.report.summary()
+        if extra:
+            self.recovery = f"{reason}; {extra}"
+        if warn:
+            _log.warning(
+                "bag '%s': %s; recovered %d messages on %d topics by scanning the file; "
+                "'visnav bag reindex %s' rewrites it",
+                self.path,
+                self.recovery,
+                self.message_count,
+                len(metas),
+                self.path,
+            )
+        return metas
 
     # ------------------------------------------------------------------ opening
     def _fail(self, exc: BaseException) -> CorruptBagError:
-        text = str(exc) or type(exc).__name__
-        return CorruptBagError(f"cannot read bag '{self.path}': {text}")
+        return CorruptBagError(f"cannot read bag '{self.path}': {_why(exc)}")
 
     def _open_any(self) -> list[TopicMeta]:
         lay = self.layout
-        paths = [lay.path] if lay.metadata is not None or not lay.path.is_dir() else list(lay.files)
+        # rosbags takes any path ending in '.bag' for a ROS 1 file: give it the storage files of
+        # a rosbag2 directory named like that (a recording made with '-o X.bag')
+        named_bag = lay.path.is_dir() and lay.path.suffix == ".bag"
+        by_dir = lay.metadata is not None and not named_bag
+        paths = [lay.path] if by_dir or not lay.path.is_dir() else list(lay.files)
         try:
             reader = AnyReader(paths, default_typestore=typestore())
             reader.open()
@@ -254,20 +322,23 @@ class BagReader:
             topic, type_name, count, qos, definition, digest, "ros1" if ros1 else "cdr", native
         )
 
-    def _scan(self) -> Iterator[tuple[Path, RecoveredChannel | RecoveredMessage]]:
+    def _scan(
+        self, report: ScanReport
+    ) -> Iterator[tuple[Path, RecoveredChannel | RecoveredMessage]]:
         scan = scan_ros1 if self.layout.is_ros1 else scan_mcap
         if self.layout.storage == "sqlite3":  # pragma: no cover - detect_layout never flags it
             msg = f"bag '{self.path}' is incomplete SQLite storage; it cannot be recovered"
             raise CorruptBagError(msg)
         for f in self.layout.files:
-            for item in scan(f):
+            for item in scan(f, report):
                 yield f, item
 
     def _open_recovered(self) -> list[TopicMeta]:
         channels: dict[tuple[Path, int], RecoveredChannel] = {}
         counts: dict[str, int] = {}
         start, end, total = 2**63 - 1, 0, 0
-        for f, item in self._scan():
+        self.report = ScanReport()
+        for f, item in self._scan(self.report):
             if isinstance(item, RecoveredChannel):
                 channels[(f, item.id)] = item
                 counts.setdefault(item.topic, 0)
@@ -307,8 +378,8 @@ class BagReader:
     # ------------------------------------------------------------------ queries
     @property
     def complete(self) -> bool:
-        """False when a storage file was never closed (messages are recovered ones)."""
-        return self.layout.complete
+        """False when the bag was read by scanning (unclosed, or its index does not decode)."""
+        return self.layout.complete and not self.recovery
 
     @property
     def topics(self) -> dict[str, TopicMeta]:
@@ -366,17 +437,28 @@ class BagReader:
         wanted = set(self.check_topics(topics))
         if not wanted:
             return
+        yielded = False
         try:
             if self._any is not None:
                 conns = [c for t in wanted for c in self._conns[t]]
                 for conn, t, raw in self._any.messages(conns, start=start_ns, stop=stop_ns):
+                    yielded = True
                     yield RawMessage(conn.topic, conn.msgtype, t, raw)
                 return
             yield from self._raw_recovered(wanted, start_ns, stop_ns)
+            return
         except BagError:
             raise
         except _READ_ERRORS as exc:
-            raise self._fail(exc) from exc
+            if yielded or not self._recover or self._any is None:
+                hint = "; 'visnav bag reindex' rewrites it without the damaged chunks"
+                failure = self._fail(exc)
+                raise CorruptBagError(f"{failure}{hint if self._recover else ''}") from exc
+            why = _why(exc)
+        # the index opened but the first chunk it points at does not decode: scan instead
+        metas = self._recover_from(f"its index points at data that does not decode ({why})")
+        self._topics = {m.name: _Topic(m, self._store) for m in metas}
+        yield from self._raw_recovered(wanted & set(self._topics), start_ns, stop_ns)
 
     def _raw_recovered(
         self, wanted: set[str], start_ns: int | None, stop_ns: int | None
@@ -384,7 +466,7 @@ class BagReader:
         channels: dict[tuple[Path, int], RecoveredChannel] = {}
         lo = -(2**63) if start_ns is None else start_ns
         hi = 2**64 if stop_ns is None else stop_ns
-        for f, item in self._scan():
+        for f, item in self._scan(ScanReport()):
             if isinstance(item, RecoveredChannel):
                 channels[(f, item.id)] = item
                 continue
@@ -426,9 +508,13 @@ class BagReader:
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
         """Close the files (idempotent)."""
+        self._close_any()
+
+    def _close_any(self) -> None:
         if self._any is not None:
             reader, self._any = self._any, None
-            reader.close()
+            with contextlib.suppress(*_READ_ERRORS):  # a reader that failed half-way
+                reader.close()
 
     def __enter__(self) -> BagReader:
         return self

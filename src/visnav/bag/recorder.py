@@ -4,25 +4,39 @@ The recorder is a node in the caller's :class:`~visnav.graph.Context`: its callb
 that context's executor, so the caller spins the context (``ctx.spin()``) while recording.
 It subscribes to the chosen topics (or every topic with ``all``) as soon as a publisher
 announces them, with a QoS compatible with every publisher, and stores the profiles the
-publishers offered. Messages are written serialized (one reused CDR buffer per topic).
+publishers offered.
+
+No silent loss: a callback only serializes the message and hands it to a writer thread
+(:mod:`visnav.bag.write_queue`), which compresses and writes, so the executor never waits
+for bz2 or the disk. The subscription queues are deeper than the publishers' (keep-last
+1000, 100 for images and clouds; ``rosbag record`` subscribes with 100) so that a busy
+executor does not lose small high-rate topics such as ``/clock``. What is lost anyway (a
+subscription queue overflowed, or the writer fell ``buffer_bytes`` behind) is counted per
+topic (:meth:`BagRecorder.drops`), stored in the bag (:mod:`visnav.bag.metadata`) and shown
+by ``bag record`` and ``bag info``.
 
 Timestamps are receive times (what ROS 2 records): the wall clock when the message reached
 this process, or, with ``use_sim_time=True``, the ``/clock`` time at the callback
 (0 before the first ``/clock`` message, as in ROS 2). A flush every ``flush_period_s``
 (0.5 s) puts the open chunk into the file, so a killed recorder loses at most that much.
+A write error (disk full, file size limit) stops the recording: :attr:`BagRecorder.error`
+is set, and :meth:`BagRecorder.stop` closes the bag and raises :class:`RecordError`.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import errno
 import re
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from visnav.bag.errors import BagError, RecordError
 from visnav.bag.qos import endpoint_qos
 from visnav.bag.storage import check_format
+from visnav.bag.write_queue import DEFAULT_BUFFER_BYTES, WriteQueue
 from visnav.bag.writer import BagWriter, default_bag_path
 from visnav.errors import VisnavError
 from visnav.graph.clock import Clock, ClockType
@@ -31,9 +45,41 @@ from visnav.graph.introspect import new_published_topics, subscription_qos_for
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.names import is_hidden_name
 from visnav.graph.node import Node, Subscription, Timer
+from visnav.graph.qos import HistoryPolicy
 from visnav.msgs.serde import CdrSerializer, get_message_class
 
-__all__ = ["BagRecorder", "RecordedTopic"]
+__all__ = ["BagRecorder", "RecordedTopic", "compile_exclude"]
+
+RECORD_DEPTH = 1000
+"""Keep-last depth of the recorder's subscriptions (a busy executor loses nothing small)."""
+LARGE_RECORD_DEPTH = 100
+"""The depth for image and cloud topics (``rosbag record``'s queue size)."""
+_LARGE_TYPES = frozenset(
+    {
+        "sensor_msgs/msg/Image",
+        "sensor_msgs/msg/CompressedImage",
+        "sensor_msgs/msg/PointCloud2",
+        "stereo_msgs/msg/DisparityImage",
+    }
+)
+
+
+def compile_exclude(pattern: str | None) -> re.Pattern[str] | None:
+    """Compile the ``--exclude`` regular expression.
+
+    Raises:
+        RecordError: the pattern is not a regular expression (names the pattern and error).
+    """
+    if not pattern:
+        return None
+    try:
+        return re.compile(pattern)
+    except re.error as exc:
+        msg = (
+            f"--exclude {pattern!r} is not a regular expression ({exc}): fix the pattern "
+            "(escape a literal '(' '[' '*' '+' '?' with a backslash)"
+        )
+        raise RecordError(msg) from exc
 
 
 @dataclasses.dataclass
@@ -43,14 +89,17 @@ class RecordedTopic:
     Attributes:
         name: topic name.
         type_name: message type.
-        count: messages written.
+        count: messages received and handed to the writer.
         qos: the subscription's QoS (short form).
+        buffer_drops: messages dropped because the writer was ``buffer_bytes`` behind
+            (or had failed).
     """
 
     name: str
     type_name: str
     count: int = 0
     qos: str = ""
+    buffer_drops: int = 0
 
 
 class BagRecorder:
@@ -69,10 +118,13 @@ class BagRecorder:
         use_sim_time: stamp messages with ``/clock`` time instead of the wall clock.
         flush_period_s: put buffered messages into the file at least this often.
         node_name: the recorder node's name.
+        buffer_bytes: most bytes of messages waiting for the writer thread before new ones
+            are dropped (and counted); ``rosbag record --buffsize``.
 
     Raises:
         UnknownStorageError: unknown format or compression.
         BagExistsError: the output exists.
+        RecordError: ``exclude`` is not a regular expression, or a bad period/buffer size.
 
     Example::
 
@@ -96,19 +148,26 @@ class BagRecorder:
         use_sim_time: bool = False,
         flush_period_s: float = 0.5,
         node_name: str = "visnav_bag_recorder",
+        buffer_bytes: int = DEFAULT_BUFFER_BYTES,
     ) -> None:
         self.fmt, self.compression = check_format(fmt, compression)
         if self.fmt not in ("mcap", "ros1"):
             msg = f"recording format {fmt!r}: expected 'mcap' or 'ros1' (convert afterwards)"
-            raise VisnavError(msg)
-        if flush_period_s <= 0 or flush_period_s > 1.0:
+            raise RecordError(msg)
+        if not 0 < flush_period_s <= 1.0:
             msg = f"flush_period_s is {flush_period_s}: expected 0 < period <= 1 s"
-            raise VisnavError(msg)
+            raise RecordError(msg)
+        if buffer_bytes < 1 << 20:
+            msg = f"buffer_bytes is {buffer_bytes}: expected at least 1 MiB (default 256 MiB)"
+            raise RecordError(msg)
         self.context = context
         self.path = Path(path)
         self.all_topics = topics is None
         self._wanted = list(topics or [])
-        self._exclude = re.compile(exclude) if exclude else None
+        self._exclude = compile_exclude(exclude)
+        self._buffer_bytes = buffer_bytes
+        self._queue: WriteQueue | None = None
+        self._handles: dict[str, int] = {}
         self._include_hidden = include_hidden
         self.use_sim_time = use_sim_time
         self._flush_period = flush_period_s
@@ -120,7 +179,8 @@ class BagRecorder:
         self._graph_version = -1
         self._skipped: set[str] = set()
         self.topics: dict[str, RecordedTopic] = {}
-        self.last_flush_monotonic = 0.0
+        self.error: BaseException | None = None
+        """The write error that stopped the recording (None while all is well)."""
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -130,8 +190,41 @@ class BagRecorder:
 
     @property
     def message_count(self) -> int:
-        """Messages written so far."""
+        """Messages received and handed to the writer so far."""
         return sum(t.count for t in self.topics.values())
+
+    @property
+    def failed(self) -> bool:
+        """True once writing the bag failed (:attr:`error`); the caller should stop."""
+        return self._queue is not None and self._queue.failed
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes received but not yet written (the writer thread's backlog)."""
+        return 0 if self._queue is None else self._queue.pending_bytes
+
+    @property
+    def last_flush_monotonic(self) -> float:
+        """``time.monotonic()`` of the writer's last flush into the file."""
+        return 0.0 if self._queue is None else self._queue.last_flush_monotonic
+
+    def drops(self) -> dict[str, int]:
+        """Messages lost per topic so far: subscription queue overflows + writer buffer.
+
+        Only topics that lost messages are listed.
+        """
+        out: dict[str, int] = {}
+        queue_drops = self._queue.dropped if self._queue is not None else {}
+        for sub in self._subs:
+            n = sub.dropped
+            if n:
+                out[sub.topic_name] = out.get(sub.topic_name, 0) + n
+        for name, rec in self.topics.items():
+            handle = self._handles.get(name)
+            rec.buffer_drops = 0 if handle is None else queue_drops.get(handle, 0)
+            if rec.buffer_drops:
+                out[name] = out.get(name, 0) + rec.buffer_drops
+        return out
 
     @property
     def bag_path(self) -> Path:
@@ -145,32 +238,86 @@ class BagRecorder:
         if self._writer is not None:
             return
         self._writer = BagWriter(self.path, fmt=self.fmt, compression=self.compression)
+        self._queue = WriteQueue(
+            self._writer, max_bytes=self._buffer_bytes, flush_period_s=self._flush_period
+        )
         self._node = Node(self._node_name, context=self.context, use_sim_time=self.use_sim_time)
         steady = Clock(ClockType.STEADY_TIME)
-        self._timers = [
-            self._node.create_timer(self._flush_period, self.flush, clock=steady),
-            self._node.create_timer(0.1, self.poll, clock=steady),
-        ]
+        self._timers = [self._node.create_timer(0.1, self.poll, clock=steady)]
         self._wanted = [self._node.resolve_topic_name(t) for t in self._wanted]
-        self.last_flush_monotonic = time.monotonic()
         self.poll()
 
     def stop(self) -> Path:
-        """Stop recording, finish the bag and return its path (idempotent)."""
+        """Stop recording, write what is queued, finish the bag and return its path.
+
+        The drop counts (:meth:`drops`) are stored in the bag. Idempotent.
+
+        Raises:
+            RecordError: writing the bag failed (disk full, file size limit, ...); the bag
+                was closed as far as possible and holds what was flushed before the error.
+        """
+        if self._writer is not None:
+            self._drain()
         writer, self._writer = self._writer, None
         node, self._node = self._node, None
+        drops = self.drops()  # before the subscriptions go with the node
         if node is not None:
             node.destroy_node()
         if writer is None:
             return self.bag_path
-        writer.close()
+        queue = self._queue
+        if queue is not None:
+            queue.close()
+            self.error = queue.error
+            drops = self.drops()
+        writer.set_drops(drops)
+        try:
+            writer.close()
+        except (OSError, BagError) as exc:
+            self.error = self.error or exc
+        if self.error is not None:
+            raise self._record_error(writer.path, self.error)
         return writer.path
 
+    def abandon(self) -> None:
+        """Drop the writer's backlog (counted as drops) so that :meth:`stop` returns soon.
+
+        ``bag record`` calls it on a second Ctrl-C while a slow compressor catches up.
+        """
+        if self._queue is not None:
+            self._queue.abandon()
+
+    def _drain(self) -> None:
+        """Run the callbacks of messages still queued in the recorder's subscriptions.
+
+        Only the recorder's own callbacks run (not the rest of the caller's context), so
+        what arrived before :meth:`stop` is written rather than silently discarded.
+        """
+        for sub in self._subs:
+            for _ in range(len(sub.queue)):
+                call = sub.take_call()
+                if call is None:
+                    break
+                call()
+
+    def _record_error(self, path: Path, exc: BaseException) -> RecordError:
+        text, code = str(exc), ""
+        if isinstance(exc, OSError) and exc.strerror:
+            text = exc.strerror
+            if exc.errno is not None:
+                code = f" ({errno.errorcode.get(exc.errno, exc.errno)})"
+        msg = (
+            f"writing bag '{path}' failed: {text}{code}; recording stopped after "
+            f"{self.message_count} messages. The bag keeps what was flushed before the error "
+            f"(read it, or 'visnav bag reindex {path}'); free disk space or raise the file "
+            "size limit (ulimit -f)"
+        )
+        return RecordError(msg)
+
     def flush(self) -> None:
-        """Put everything received so far into the file (runs on the recorder's timer)."""
-        if self._writer is not None:
-            self._writer.flush()
-            self.last_flush_monotonic = time.monotonic()
+        """Ask the writer thread to put everything received so far into the file."""
+        if self._queue is not None:
+            self._queue.request_flush()
 
     # ------------------------------------------------------------------ discovery
     def _selected(self, topic: str) -> bool:
@@ -203,7 +350,8 @@ class BagRecorder:
             self._subscribe(node, topic, types[0], list(found.publishers))
 
     def _subscribe(self, node: Node, topic: str, type_name: str, pubs: list[Any]) -> None:
-        assert self._writer is not None
+        if self._writer is None:  # pragma: no cover - poll() checks it
+            return
         try:
             cls = get_message_class(type_name)
         except VisnavError as exc:
@@ -211,7 +359,15 @@ class BagRecorder:
             self._skipped.add(topic)
             return
         qos = subscription_qos_for(self.context, topic)
-        handle = self._writer.add_topic(topic, type_name, qos=[endpoint_qos(e) for e in pubs])
+        if qos.history is HistoryPolicy.KEEP_LAST:
+            depth = LARGE_RECORD_DEPTH if type_name in _LARGE_TYPES else RECORD_DEPTH
+            qos = dataclasses.replace(qos, depth=max(qos.depth, depth))
+        offered = [endpoint_qos(e) for e in pubs]
+        if self._queue is None:  # pragma: no cover - start() sets it
+            return
+        with self._queue.writer_lock:  # the writer thread may be writing
+            handle = self._writer.add_topic(topic, type_name, qos=offered)
+        self._handles[topic] = handle
         rec = RecordedTopic(topic, type_name, qos=qos.short())
         self.topics[topic] = rec
         callback = self._callback(rec, handle, CdrSerializer(type_name))
@@ -221,11 +377,13 @@ class BagRecorder:
     def _callback(
         self, rec: RecordedTopic, handle: int, cdr: CdrSerializer
     ) -> Callable[[Any, MessageInfo | None], None]:
-        writer = self._writer
-        assert writer is not None
-        assert self._node is not None
-        clock = self._node.get_clock()
+        queue, node, writer = self._queue, self._node, self._writer
+        if queue is None or node is None or writer is None:  # pragma: no cover - start() sets them
+            msg = "the recorder is not started"
+            raise RecordError(msg)
+        clock = node.get_clock()
         sim = self.use_sim_time
+        max_time = writer.max_time_ns
 
         def on_message(msg: Any, info: MessageInfo | None) -> None:
             if self._writer is None:
@@ -236,7 +394,10 @@ class BagRecorder:
                 t, pub = info.received_timestamp_ns, info.source_timestamp_ns
             else:
                 t = pub = time.time_ns()
-            writer.write(handle, t, cdr.serialize(msg), publish_ns=pub)
-            rec.count += 1
+            if not 0 <= t < max_time:  # cannot be stored: count it, do not stop the writer
+                queue.dropped[handle] = queue.dropped.get(handle, 0) + 1
+                return
+            if queue.put(handle, t, bytes(cdr.serialize(msg)), pub if pub >= 0 else t):
+                rec.count += 1
 
         return on_message

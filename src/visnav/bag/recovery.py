@@ -1,9 +1,15 @@
-"""Reading storage files that were never closed (the recorder was killed).
+"""Reading storage files without their index: never closed, or with a damaged index.
 
-An MCAP file without its footer, or a ROS 1 bag whose header has no index position, still
-holds every chunk that reached the disk. These scanners walk the file record by record,
-stop at the first record that is cut short, and yield the connections and messages of the
-complete records: what ``ros2 bag reindex`` / ``rosbag reindex`` would recover.
+An MCAP file without its footer (or with a damaged summary), or a ROS 1 bag whose header has
+no index position (or whose index is damaged), still holds every chunk that reached the
+disk. These scanners walk the file record by record, stop at the first record that is cut
+short, and yield the connections and messages of the complete records: what
+``ros2 bag reindex`` / ``rosbag reindex`` would recover.
+
+Given a :class:`ScanReport`, a scan does not raise on damage: a chunk whose bytes do not
+decode (MCAP CRC mismatch, bad compression, a record running past its end) is skipped, a
+damaged record outside a chunk ends the scan, and both are written into the report.
+Without one, damage raises :class:`~visnav.bag.errors.CorruptBagError`.
 """
 
 from __future__ import annotations
@@ -25,17 +31,19 @@ from visnav.bag.errors import CorruptBagError
 from visnav.bag.qos import latched_qos
 from visnav.bag.storage import MCAP_MAGIC, ROS1_MAGIC
 
-__all__ = ["RecoveredChannel", "RecoveredMessage", "scan_mcap", "scan_ros1"]
+__all__ = ["RecoveredChannel", "RecoveredMessage", "ScanReport", "scan_mcap", "scan_ros1"]
 
 _U16 = struct.Struct("<H")
 _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 _MSG_HEAD = struct.Struct("<HIQQ")  # channel, sequence, log time, publish time
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, crc
+_MAX_CHUNK = 1 << 30  # a larger uncompressed size is damage, not data (writers use ~1 MiB)
 # what damaged bytes raise while being parsed
 _DAMAGE = (
     KeyError,
     IndexError,
+    EOFError,  # bz2: a stream cut short
     struct.error,
     ValueError,
     OSError,
@@ -67,6 +75,29 @@ class RecoveredChannel:
     digest: str
     qos: tuple[Qos, ...]
     ros1: bool
+
+
+@dataclasses.dataclass
+class ScanReport:
+    """What a tolerant scan left out (filled in while scanning).
+
+    Attributes:
+        skipped: one line per damaged chunk that was skipped (file, byte offset, reason).
+        stopped: why the scan ended early at a damaged record ('' when it did not).
+    """
+
+    skipped: list[str] = dataclasses.field(default_factory=list)
+    stopped: str = ""
+
+    def summary(self) -> str:
+        """One clause for a warning: what was skipped and where the scan stopped."""
+        parts = []
+        if self.skipped:
+            n = len(self.skipped)
+            parts.append(f"skipped {n} damaged chunk{'s' if n > 1 else ''} ({self.skipped[0]})")
+        if self.stopped:
+            parts.append(f"stopped at {self.stopped}")
+        return "; ".join(parts)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,6 +168,19 @@ def _damaged(path: Path, where: int, exc: BaseException) -> CorruptBagError:
     )
 
 
+def _tolerate(
+    report: ScanReport | None, path: Path, where: int, exc: BaseException, *, chunk: bool
+) -> None:
+    """Raise for a strict scan; note the damage in ``report`` for a tolerant one."""
+    if report is None:
+        raise _damaged(path, where, exc) from exc
+    text = str(exc) or type(exc).__name__
+    if chunk:
+        report.skipped.append(f"'{path}' chunk at byte {where}: {text}")
+    else:
+        report.stopped = f"'{path}' byte {where}: {text}"
+
+
 # ---------------------------------------------------------------------------- MCAP
 def _mcap_record(
     op: int, body: memoryview, schemas: dict[int, tuple[str, str, str]]
@@ -180,6 +224,9 @@ def _mcap_chunk(
     b.pos = _CHUNK_HEAD.size
     kind = b.string()
     records = b.take(b.u64())
+    if usize > _MAX_CHUNK:
+        msg = f"the chunk says it holds {usize} bytes uncompressed (more than 1 GiB)"
+        raise ValueError(msg)
     if kind == "":
         raw = bytes(records)
     elif kind == "zstd":
@@ -206,18 +253,22 @@ def _mcap_chunk(
     return out
 
 
-def scan_mcap(path: Path) -> Iterator[RecoveredChannel | RecoveredMessage]:
+def scan_mcap(
+    path: Path, report: ScanReport | None = None
+) -> Iterator[RecoveredChannel | RecoveredMessage]:
     """Yield the channels and messages of an MCAP file, stopping at a cut-short record.
 
     Args:
         path: the ``.mcap`` file (closed or not).
+        report: collect damage here instead of raising (damaged chunks are skipped).
 
     Yields:
         :class:`RecoveredChannel` before the messages that use it, then messages in file
         order (time order inside each chunk).
 
     Raises:
-        CorruptBagError: not an MCAP file, or a complete record that does not decode.
+        CorruptBagError: not an MCAP file, or (without ``report``) a complete record that
+            does not decode.
     """
     f, size = _open(path, MCAP_MAGIC, "MCAP")
     with f:
@@ -241,7 +292,11 @@ def scan_mcap(path: Path) -> Iterator[RecoveredChannel | RecoveredMessage]:
                 else:
                     items = list(_mcap_record(op, memoryview(body), schemas))
             except _DAMAGE as exc:
-                raise _damaged(path, where, exc) from exc
+                _tolerate(report, path, where, exc, chunk=op == 0x06)
+                if op != 0x06:
+                    return
+                f.seek(pos)
+                continue
             yield from items
 
 
@@ -293,6 +348,9 @@ def _ros1_chunk(
 ) -> list[RecoveredChannel | RecoveredMessage]:
     kind = fields.get("compression", b"none").decode()
     (usize,) = _U32.unpack(fields["size"])
+    if usize > _MAX_CHUNK:
+        msg = f"the chunk says it holds {usize} bytes uncompressed (more than 1 GiB)"
+        raise ValueError(msg)
     if kind == "none":
         raw = data
     elif kind == "lz4":
@@ -325,17 +383,21 @@ def _ros1_chunk(
     return out
 
 
-def scan_ros1(path: Path) -> Iterator[RecoveredChannel | RecoveredMessage]:
+def scan_ros1(
+    path: Path, report: ScanReport | None = None
+) -> Iterator[RecoveredChannel | RecoveredMessage]:
     """Yield the connections and messages of a ROS 1 bag, stopping at a cut-short record.
 
     Args:
         path: the ``.bag`` file (indexed or not).
+        report: collect damage here instead of raising (damaged chunks are skipped).
 
     Yields:
         :class:`RecoveredChannel` before its messages, then messages in file order.
 
     Raises:
-        CorruptBagError: not a ROS 1 bag, or a complete record that does not decode.
+        CorruptBagError: not a ROS 1 bag, or (without ``report``) a complete record that
+            does not decode.
     """
     f, size = _open(path, ROS1_MAGIC, "ROS 1 bag")
     with f:
@@ -351,6 +413,7 @@ def scan_ros1(path: Path) -> Iterator[RecoveredChannel | RecoveredMessage]:
                 return  # cut short
             where = pos
             pos += 8 + hlen + dlen
+            op = -1
             try:
                 fields = _fields(header)
                 op = fields.get("op", b"\x00")[0]
@@ -358,11 +421,17 @@ def scan_ros1(path: Path) -> Iterator[RecoveredChannel | RecoveredMessage]:
                     f.seek(pos)
                     continue
                 data = f.read(dlen)
-                if op == 0x05:
-                    items = _ros1_chunk(fields, data, seen)
+                if op == 0x05:  # a damaged chunk must not mark its connections as seen
+                    fresh = set(seen)
+                    items = _ros1_chunk(fields, data, fresh)
+                    seen |= fresh
                 else:  # an unchunked bag, or the connections of the index
                     item = _ros1_item(fields, data, seen)
                     items = [] if item is None else [item]
             except _DAMAGE as exc:
-                raise _damaged(path, where, exc) from exc
+                _tolerate(report, path, where, exc, chunk=op == 0x05)
+                if op != 0x05:
+                    return
+                f.seek(pos)
+                continue
             yield from items

@@ -118,7 +118,7 @@ class Rosbag2McapWriter:
         directory: the bag directory to create.
         compression: chunk compression, ``"none"``, ``"zstd"`` or ``"lz4"``.
         chunk_size: close a chunk once it holds this many bytes.
-        crc: write chunk CRCs (readers then detect damaged chunks).
+        crc: write chunk and summary CRCs (readers then detect damaged chunks).
     """
 
     def __init__(
@@ -127,7 +127,7 @@ class Rosbag2McapWriter:
         *,
         compression: str = "none",
         chunk_size: int = 1 << 20,
-        crc: bool = False,
+        crc: bool = True,
     ) -> None:
         directory.mkdir(parents=True)
         self.directory = directory
@@ -183,6 +183,10 @@ class Rosbag2McapWriter:
         self._topics[channel].count += 1
         self._start = min(self._start, t_ns)
         self._end = max(self._end, t_ns)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """Write an MCAP Metadata record (key-value strings) into the data section."""
+        self._mcap.add_metadata(name, data)
 
     def flush(self) -> None:
         """Close the current chunk, hand the file its bytes and rewrite ``metadata.yaml``."""

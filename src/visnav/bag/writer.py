@@ -8,6 +8,7 @@ as they are (ROS 1 -> ROS 1 conversion of types visnav does not know).
 from __future__ import annotations
 
 import dataclasses
+import struct
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
@@ -17,14 +18,16 @@ from rosbags.interfaces import Connection, Qos, QosDurability
 from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Rosbag2Writer
+from rosbags.serde import SerdeError
 
-from visnav.bag.errors import BagError, BagExistsError
+from visnav.bag.errors import BagError, BagExistsError, CorruptBagError, UnknownStorageError
+from visnav.bag.metadata import MCAP_METADATA_NAME, drops_json, write_ros1_drops
 from visnav.bag.rosbag2_mcap import Rosbag2McapWriter
 from visnav.bag.storage import check_format
 from visnav.bag.typeconv import ros1_definition
 from visnav.msgs.serde import get_message_class, message_definition, typestore
 
-__all__ = ["BagWriter", "default_bag_path"]
+__all__ = ["BagWriter", "check_bag_name", "default_bag_path", "format_for_output"]
 
 
 def default_bag_path(path: str | Path, fmt: str) -> Path:
@@ -33,6 +36,35 @@ def default_bag_path(path: str | Path, fmt: str) -> Path:
     if fmt == "ros1" and p.suffix != ".bag":
         return p.with_name(p.name + ".bag")
     return p
+
+
+def format_for_output(path: str | Path, fmt: str | None) -> str:
+    """The format to write ``path`` in when the user gave ``fmt`` (None: not given).
+
+    A ``.bag`` name means a ROS 1 bag (``rosbag record -O x.bag``); anything else rosbag2
+    MCAP (``ros2 bag record``'s default).
+
+    Raises:
+        UnknownStorageError: ``fmt`` is a rosbag2 format but the name ends in ``.bag``.
+    """
+    chosen = fmt or ("ros1" if Path(path).suffix == ".bag" else "mcap")
+    check_bag_name(Path(path), chosen.lower())
+    return chosen
+
+
+def check_bag_name(path: Path, fmt: str) -> None:
+    """Refuse a ``.bag`` name for a rosbag2 format (readers would take it for a ROS 1 file).
+
+    Raises:
+        UnknownStorageError: the name ends in ``.bag`` and ``fmt`` is not ``ros1``.
+    """
+    if path.suffix == ".bag" and fmt != "ros1":
+        msg = (
+            f"bag output '{path}': a .bag name means a ROS 1 bag file, but format {fmt!r} "
+            f"writes a rosbag2 directory; use --format ros1, or a name without .bag "
+            f"(e.g. '{path.with_suffix('')}')"
+        )
+        raise UnknownStorageError(msg)
 
 
 @dataclasses.dataclass
@@ -54,13 +86,13 @@ class BagWriter:
         compression: ``"none"``; ``"zstd"`` or ``"lz4"`` chunks for MCAP; ``"lz4"`` or ``"bz2"``
             chunks for ROS 1.
         chunk_size: bytes per chunk before it is closed (MCAP and ROS 1).
-        crc: write MCAP chunk CRCs (readers then detect damaged chunks). Default: for
-            compressed chunks only; on uncompressed camera images CRC32 halves the write
-            throughput (a zero CRC means "not computed" in MCAP, as ``rosbags`` writes).
+        crc: write MCAP chunk and summary CRCs (default), so that readers detect a damaged
+            chunk and ``bag reindex`` leaves it out; False stores 0 ("not computed" in MCAP).
 
     Raises:
         BagExistsError: the output exists.
-        UnknownStorageError: unknown format or compression.
+        UnknownStorageError: unknown format or compression, or a ``.bag`` name for a
+            rosbag2 (directory) format: ``.bag`` means a ROS 1 file.
 
     Example::
 
@@ -76,12 +108,11 @@ class BagWriter:
         fmt: str = "mcap",
         compression: str = "none",
         chunk_size: int = 1 << 20,
-        crc: bool | None = None,
+        crc: bool = True,
     ) -> None:
         self.fmt, self.compression = check_format(fmt, compression)
-        if crc is None:
-            crc = self.compression != "none"
         self.path = default_bag_path(path, self.fmt)
+        check_bag_name(self.path, self.fmt)
         if self.path.exists():
             msg = f"bag output '{self.path}' exists already: choose another name or remove it"
             raise BagExistsError(msg)
@@ -92,6 +123,7 @@ class BagWriter:
         self._ros1: Ros1Writer | None = None
         self._sqlite: Rosbag2Writer | None = None
         self._closed = False
+        self._drops: dict[str, int] = {}
         self.message_count = 0
         # ROS 1 stores uint32 seconds + nanoseconds; MCAP and SQLite 3 signed/unsigned 64-bit ns
         self._max_time = 2**32 * 1_000_000_000 if self.fmt == "ros1" else 2**63
@@ -183,6 +215,11 @@ class BagWriter:
         return len(self._topics) - 1
 
     @property
+    def max_time_ns(self) -> int:
+        """Record times must be below this (ROS 1 stores uint32 seconds)."""
+        return self._max_time
+
+    @property
     def topics(self) -> list[tuple[str, str, int]]:
         """``(topic, type, messages written)`` per added topic."""
         return [(t.name, t.type_name, t.count) for t in self._topics]
@@ -215,7 +252,7 @@ class BagWriter:
             self._mcap.write(t.handle, t_ns, data, t_ns if publish_ns is None else publish_ns)
         elif self._ros1 is not None:
             view = memoryview(data)
-            raw = view if t.ros1_bytes else typestore().cdr_to_ros1(view, t.type_name)
+            raw = view if t.ros1_bytes else self._to_ros1(t, t_ns, view)
             self._ros1.write(t.handle, t_ns, raw)
         else:
             assert self._sqlite is not None
@@ -223,6 +260,25 @@ class BagWriter:
             self._sqlite.write(conn, t_ns, bytes(data))
         t.count += 1
         self.message_count += 1
+
+    def _to_ros1(self, t: _Topic, t_ns: int, cdr: memoryview) -> memoryview | bytes:
+        try:
+            return typestore().cdr_to_ros1(cdr, t.type_name)
+        except (ValueError, IndexError, KeyError, struct.error, SerdeError, AssertionError) as exc:
+            msg = (
+                f"topic '{t.name}': message #{t.count} (t={t_ns} ns, {len(cdr)} bytes) is not "
+                f"valid CDR of {t.type_name} ({type(exc).__name__}: {exc}), so it cannot be "
+                "converted to ROS 1"
+            )
+            raise CorruptBagError(msg) from exc
+
+    def set_drops(self, drops: dict[str, int]) -> None:
+        """Store the messages a recorder lost per topic; written into the bag on :meth:`close`.
+
+        MCAP: a ``visnav_recorder`` Metadata record; ROS 1: a header field (see
+        :mod:`visnav.bag.metadata`); SQLite 3: not stored.
+        """
+        self._drops = {t: n for t, n in drops.items() if n > 0}
 
     def flush(self) -> None:
         """Put everything written so far into the file (closes the open chunk).
@@ -242,9 +298,18 @@ class BagWriter:
             return
         self._closed = True
         if self._mcap is not None:
+            if self._drops:
+                self._mcap.add_metadata(MCAP_METADATA_NAME, {"drops": drops_json(self._drops)})
             self._mcap.close()
         elif self._ros1 is not None:
-            self._ros1.close()
+            try:
+                self._ros1.close()
+            finally:
+                bio = self._ros1.bio
+                if bio is not None and not bio.closed:  # close() failed half-way (disk full)
+                    bio.close()
+            if self._drops:
+                write_ros1_drops(self.path, self._drops)
         elif self._sqlite is not None:
             self._sqlite.close()
 

@@ -9,6 +9,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from types import FrameType
 
 from visnav.bag.storage import COMPRESSIONS, FORMATS
@@ -28,8 +29,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("topics", nargs="*", metavar="TOPIC", help="topics to record")
     p.add_argument("-a", "--all", action="store_true", help="record every topic (also new ones)")
     p.add_argument("-o", "--output", help="output bag (default rosbag2_<date> / <date>.bag)")
-    p.add_argument("--format", choices=["mcap", "ros1"], default="mcap", help="default mcap")
+    p.add_argument(
+        "--format",
+        choices=["mcap", "ros1"],
+        default=None,
+        help="default: ros1 for an output named *.bag, else mcap",
+    )
     p.add_argument("--compression", choices=_ALL_COMPRESSIONS, default="none")
+    p.add_argument(
+        "-b",
+        "--buffsize",
+        type=float,
+        default=256.0,
+        metavar="MB",
+        help="writer buffer in MiB before messages are dropped and counted (default 256)",
+    )
     p.add_argument("-x", "--exclude", help="with -a: regular expression of topics to leave out")
     p.add_argument("--include-hidden-topics", action="store_true", help="with -a: also _hidden")
     p.add_argument("--use-sim-time", action="store_true", help="stamp with /clock time")
@@ -63,7 +77,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = sub.add_parser("convert", help="write a bag in another format")
     p.add_argument("input")
     p.add_argument("output")
-    p.add_argument("--format", choices=list(FORMATS), default="mcap", help="default mcap")
+    p.add_argument(
+        "--format",
+        choices=list(FORMATS),
+        default=None,
+        help="default: ros1 for an output named *.bag, else mcap",
+    )
     p.add_argument("--compression", choices=_ALL_COMPRESSIONS, default="none")
     p.add_argument("--topics", nargs="+", default=None, help="only these topics")
     p.set_defaults(func=cmd_convert)
@@ -81,10 +100,15 @@ def _default_output(fmt: str) -> str:
 
 
 class _StopFlag:
-    """Set by SIGINT/SIGTERM so the recording loop ends and closes the bag."""
+    """Set by SIGINT/SIGTERM so the recording loop ends and closes the bag.
+
+    A second signal calls ``on_repeat`` (if set): ``bag record`` then drops the writer's
+    backlog instead of waiting for a slow compressor.
+    """
 
     def __init__(self) -> None:
         self.event = threading.Event()
+        self.on_repeat: Callable[[], None] | None = None
         self._old: dict[int, object] = {}
 
     def __enter__(self) -> _StopFlag:
@@ -93,6 +117,8 @@ class _StopFlag:
         return self
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.event.is_set() and self.on_repeat is not None:
+            self.on_repeat()
         self.event.set()
 
     def __exit__(self, *exc: object) -> None:
@@ -102,23 +128,33 @@ class _StopFlag:
 
 def cmd_record(args: argparse.Namespace) -> int:
     """``bag record``."""
-    from visnav.bag.recorder import BagRecorder
+    from visnav.bag.recorder import BagRecorder, compile_exclude
+    from visnav.bag.writer import format_for_output
     from visnav.graph.context import Context
 
     if args.all == bool(args.topics):
         msg = "give the topics to record, or -a for all of them (not both)"
         raise VisnavError(msg)
-    out = args.output or _default_output(args.format)
+    if args.exclude is not None and not args.all:
+        msg = f"-x/--exclude {args.exclude!r} needs -a (it filters the topics -a records)"
+        raise VisnavError(msg)
+    compile_exclude(args.exclude)  # a bad pattern fails before anything is opened
+    if not 1.0 <= args.buffsize <= 1 << 20:
+        msg = f"--buffsize is {args.buffsize} MiB: expected 1 to 1048576"
+        raise VisnavError(msg)
+    fmt = format_for_output(args.output, args.format) if args.output else args.format or "mcap"
+    out = args.output or _default_output(fmt)
     with Context(args.domain) as ctx, _StopFlag() as stop:
         recorder = BagRecorder(
             ctx,
             None if args.all else args.topics,
             out,
-            fmt=args.format,
+            fmt=fmt,
             compression=args.compression,
             exclude=args.exclude,
             include_hidden=args.include_hidden_topics,
             use_sim_time=args.use_sim_time,
+            buffer_bytes=round(args.buffsize * (1 << 20)),
         )
         recorder.start()
         try:
@@ -126,12 +162,31 @@ def cmd_record(args: argparse.Namespace) -> int:
             end = None if args.duration is None else time.monotonic() + args.duration
             while not stop.event.is_set() and (end is None or time.monotonic() < end):
                 ctx.spin_once(0.05)
+                if recorder.failed:
+                    break
         finally:
-            path = recorder.stop()
+            backlog = recorder.pending_bytes
+            stop.on_repeat = recorder.abandon
+            if backlog > 16 << 20 and not recorder.failed:
+                print(
+                    f"Writing the {backlog / (1 << 20):.0f} MiB still queued "
+                    f"({args.compression} compression; Ctrl-C again drops it)...",
+                    flush=True,
+                )
+            path = recorder.stop()  # raises RecordError after a write failure
     print(
         f"Recorded {recorder.message_count} messages on {len(recorder.topics)} topics to '{path}'",
         flush=True,
     )
+    drops = recorder.drops()
+    if drops:
+        lost = ", ".join(f"{t}: {n}" for t, n in sorted(drops.items()))
+        print(
+            f"warning: dropped {sum(drops.values())} messages ({lost}); the recorder could not "
+            "keep up: record fewer topics, choose lighter compression, or raise --buffsize",
+            file=sys.stderr,
+            flush=True,
+        )
     return 0
 
 
@@ -180,9 +235,11 @@ def cmd_play(args: argparse.Namespace) -> int:
 def cmd_convert(args: argparse.Namespace) -> int:
     """``bag convert``."""
     from visnav.bag.convert import convert_bag
+    from visnav.bag.writer import format_for_output
 
+    fmt = format_for_output(args.output, args.format)
     result = convert_bag(
-        args.input, args.output, fmt=args.format, compression=args.compression, topics=args.topics
+        args.input, args.output, fmt=fmt, compression=args.compression, topics=args.topics
     )
     for topic, reason in result.skipped.items():
         print(f"warning: not converted '{topic}': {reason}", file=sys.stderr)
@@ -197,5 +254,7 @@ def cmd_reindex(args: argparse.Namespace) -> int:
     from visnav.bag.convert import reindex_bag
 
     result = reindex_bag(args.bag)
+    if result.recovery:
+        print(f"warning: '{result.path}': {result.recovery}", file=sys.stderr)
     print(f"Rewrote '{result.path}': {result.message_count} messages")
     return 0
