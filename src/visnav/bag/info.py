@@ -15,12 +15,11 @@ import struct
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from visnav.bag.errors import CorruptBagError
 from visnav.bag.metadata import read_drops
 from visnav.bag.reader import BagReader
 from visnav.bag.storage import ROS1_MAGIC, BagLayout
+from visnav.safe_yaml import YamlError, load_yaml_file
 
 _log = logging.getLogger("visnav.bag")
 
@@ -190,7 +189,7 @@ def stored_compression(layout: BagLayout) -> str:
     """The bag's compression as stored (``"unknown"`` when the bytes there are damaged)."""
     try:
         return _stored_compression(layout)
-    except (ValueError, OSError, OverflowError, struct.error, yaml.YAMLError, AttributeError):
+    except (ValueError, OSError, OverflowError, struct.error, YamlError, AttributeError):
         return "unknown"
 
 
@@ -198,7 +197,7 @@ def _stored_compression(layout: BagLayout) -> str:
     if layout.is_ros1:
         return _ros1_compression(layout.files[0])
     if layout.metadata is not None:
-        meta = yaml.safe_load(layout.metadata.read_text(encoding="utf-8"))
+        meta = load_yaml_file(layout.metadata, what="rosbag2 metadata")
         meta = meta.get("rosbag2_bagfile_information", {}) if isinstance(meta, dict) else {}
         fmt, mode = meta.get("compression_format") or "", meta.get("compression_mode") or ""
         if fmt:

@@ -17,9 +17,8 @@ import dataclasses
 import struct
 from pathlib import Path
 
-import yaml
-
 from visnav.bag.errors import BagNotFoundError, UnknownStorageError
+from visnav.safe_yaml import YamlError, load_yaml_file
 
 __all__ = [
     "COMPRESSIONS",
@@ -174,10 +173,10 @@ def _dir_layout(path: Path) -> BagLayout:
     files: list[Path] = []
     if meta.is_file():
         try:
-            info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+            info = load_yaml_file(meta, what="rosbag2 metadata")["rosbag2_bagfile_information"]
             storage = str(info["storage_identifier"])
             files = [path / Path(str(p)).name for p in info["relative_file_paths"]]
-        except (yaml.YAMLError, KeyError, TypeError, UnicodeDecodeError) as exc:
+        except (YamlError, KeyError, TypeError) as exc:
             msg = (
                 f"'{meta}' is not rosbag2 metadata ({type(exc).__name__}: {exc}); "
                 "move it away to read the storage files directly"
