@@ -80,12 +80,21 @@ def _run_fake_car(ctx: Context, n: int, frame_rate: float) -> CarSlamTask:
     tf = TransformBroadcaster(feeder)
     static = StaticTransformBroadcaster(feeder)
     static.send_transform(
-        make(
-            TransformStamped,
-            header=Header(stamp=ns_to_time(0), frame_id="base_footprint"),
-            child_frame_id="camera_optical",
-            transform=matrix_to_transform(T_BASE_CAM),
-        )
+        [
+            make(
+                TransformStamped,
+                header=Header(stamp=ns_to_time(0), frame_id="base_footprint"),
+                child_frame_id="camera_optical",
+                transform=matrix_to_transform(T_BASE_CAM),
+            ),
+            # the car task's map -> odom (the spawn pose; here the world origin)
+            make(
+                TransformStamped,
+                header=Header(stamp=ns_to_time(0), frame_id="map"),
+                child_frame_id="odom",
+                transform=matrix_to_transform(np.eye(4)),
+            ),
+        ]
     )
     room = SyntheticRoom(seed=1)
     cams = circle_trajectory(n + 1, turns=n / 130)

@@ -515,13 +515,21 @@ def test_car_description() -> None:
     assert _text(p3d, "remapping") == "odom:=ground_truth/odom"
     assert _text(p3d, "update_rate") == "50"
     drive = plugins["libgazebo_ros_diff_drive.so"]
-    assert float(_text(drive, "wheel_separation")) == pytest.approx(np.linalg.norm(left - right))
+    # wheel encoders use the calibrated effective track: joint separation + wheel width
+    width = 0.04
+    assert float(_text(drive, "wheel_separation")) == pytest.approx(
+        np.linalg.norm(left - right) + width
+    )
     assert float(_text(drive, "wheel_diameter")) == pytest.approx(2 * wheel.radius)
-    assert _text(drive, "odometry_source") == "1"
-    encoder = _gazebo_blocks("car.urdf.xacro", odometry_source="0")
-    drives = [p for b in encoder for p in b.getElementsByTagName("plugin")]
-    assert any(p.getElementsByTagName("odometry_source") and _text(p, "odometry_source") == "0"
+    assert _text(drive, "odometry_source") == "0"  # wheel encoders (with noise) by default
+    ideal = _gazebo_blocks("car.urdf.xacro", ideal_sensors="true")
+    drives = [p for b in ideal for p in b.getElementsByTagName("plugin")]
+    assert any(p.getElementsByTagName("odometry_source") and _text(p, "odometry_source") == "1"
                for p in drives)  # fmt: skip
+    ideal_drive = next(p for p in drives if p.getElementsByTagName("odometry_source"))
+    assert float(_text(ideal_drive, "wheel_separation")) == pytest.approx(
+        np.linalg.norm(left - right)
+    )
 
 
 def test_quadrotor_description() -> None:

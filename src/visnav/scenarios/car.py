@@ -3,8 +3,14 @@
 Pipeline (all nodes with ``use_sim_time``): depth camera -> depthimage_to_laserscan
 (``/scan``) -> log-odds mapper (``/map``, the car explores a world it does not know)
 -> navigator (global + local costmaps, Dijkstra planner, DWA with nav2's rotation shim)
--> ``/cmd_vel`` -> the diff drive. ``map -> odom`` is the identity (a static transform):
-odometry here is the simulator's ground-truth odometry (diff drive ``world`` source).
+-> ``/cmd_vel`` -> the diff drive. With ``--no-ideal-sensors`` odometry (``/odom``,
+``odom -> base_footprint``) comes from the diff drive's wheel encoders with the car's slip
+and encoder errors, so it drifts, and ``map -> odom`` is a static transform to the spawn
+pose (the initial pose a user gives AMCL): until SLAM publishes ``map -> odom`` the drift
+goes straight into navigation, which is why ``--ideal-sensors`` (the simulator's ground
+truth: diff drive ``world`` source, whose ``odom`` is the world frame, ``map -> odom`` the
+identity, clean cameras) is still the default. Only this observer reads the ground truth
+(``/ground_truth/odom``).
 
 Task: a seeded sequence of goals (room centres and corridor corners of the office's
 free-space graph, each different from the last). Metrics: ``goals_total``,
@@ -12,12 +18,16 @@ free-space graph, each different from the last). Metrics: ``goals_total``,
 floor, sampled at 200 Hz of sim time; contacts less than 0.2 s apart are one event),
 ``path_length_m`` (travelled, ground truth),
 ``shortest_path_m`` (sum over goals of the shortest grid path on the true map with the
-car's radius), ``path_ratio`` and ``goal_times_s``.
+car's radius), ``path_ratio``, ``goal_times_s`` and ``odometry``: ``source`` (``encoder``
+or ``world``), ``drift_m`` and ``heading_drift_deg`` (final ``map -> base_footprint`` by
+odometry against ground truth), ``distance_m`` (driven, ground truth). Files: the mapped
+grid as ``map.yaml`` + ``map.pgm`` (map_saver's format) in the run directory.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,6 +36,7 @@ from scipy import ndimage
 from visnav.graph.context import Context
 from visnav.graph.node import Node
 from visnav.mapping import LETHAL_OBSTACLE, Costmap2D
+from visnav.mapping.map_io import save_map
 from visnav.mapping.nodes import MapperNode
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Header, Odometry, Quaternion, Transform, TransformStamped, Vector3
@@ -35,6 +46,7 @@ from visnav.planning.nodes import NavigatorNode
 from visnav.scenarios.car_slam import CarSlamTask
 from visnav.scenarios.contacts import ContactCounter
 from visnav.scenarios.runner import ScenarioError
+from visnav.sim.gazebo_specs import DiffDriveSpec
 from visnav.sim.simulator import Simulator
 from visnav.sim.world import true_occupancy_grid
 from visnav.tf.ros import StaticTransformBroadcaster
@@ -58,6 +70,34 @@ def depth_range_min(sim: Simulator) -> float:
     raise ScenarioError(msg)
 
 
+def wheel_odometry(sim: Simulator, *, encoders: bool) -> DiffDriveSpec:
+    """The robot's diff drive; with ``encoders``, one whose odometry comes from its wheels.
+
+    Raises:
+        ScenarioError: no diff drive plugin, or (with ``encoders``) a ``world`` source.
+    """
+    robot = sim.robot()
+    drives = robot.description.gazebo.diff_drives
+    if not drives:
+        msg = (
+            f"robot {robot.name!r} has no libgazebo_ros_diff_drive.so plugin: the car scenario "
+            "drives it through /cmd_vel and reads its wheel odometry. Fix: add a <gazebo><plugin "
+            'filename="libgazebo_ros_diff_drive.so"> with its <left_joint>/<right_joint>'
+        )
+        raise ScenarioError(msg)
+    drive = drives[0]
+    if encoders and drive.odometry_source != "encoder":
+        msg = (
+            f"robot {robot.name!r}: plugin {drive.plugin_name!r} (libgazebo_ros_diff_drive.so) "
+            "has odometry_source world (ground truth, like the p3d plugin) but the scenario "
+            "needs wheel-encoder odometry. Fix: set <odometry_source>0</odometry_source> "
+            "(ROS 1: <odometrySource>encoder</odometrySource>) in the plugin, or run with "
+            "--ideal-sensors"
+        )
+        raise ScenarioError(msg)
+    return drive
+
+
 def goal_sequence(
     graph_nodes: dict[str, Any], seed: int, count: int = GOALS
 ) -> list[tuple[float, float]]:
@@ -75,10 +115,12 @@ def goal_sequence(
 class CarTask:
     """Sends the goals one after another and measures the drive (module docstring)."""
 
-    def __init__(self, ctx: Context, sim: Simulator, seed: int) -> None:
+    def __init__(self, ctx: Context, sim: Simulator, seed: int, *, encoders: bool = True) -> None:
         import mujoco  # noqa: PLC0415 - the simulator already imported it
 
         self._sim = sim
+        drive = wheel_odometry(sim, encoders=encoders)
+        self.odometry_source = drive.odometry_source
         world = sim.world
         self.goals = goal_sequence(world.metadata["graph"]["nodes"], seed)
         grid, origin = true_occupancy_grid(world, 0.05)
@@ -109,7 +151,7 @@ class CarTask:
                 "range_min": depth_range_min(sim),
             },
         )
-        MapperNode(
+        self.mapper = MapperNode(
             context=ctx,
             parameter_overrides={
                 **sim_time,
@@ -129,26 +171,62 @@ class CarTask:
         )
         ctx.spin_some()  # take the simulator's latched /tf_static first
         self._node = Node("car_scenario", context=ctx, use_sim_time=True)
-        identity = TransformStamped(
+        # encoder odometry starts at the spawn pose (Gazebo's does too): map -> odom is it
+        x0, y0, yaw0 = self._spawn() if drive.odometry_source == "encoder" else (0.0, 0.0, 0.0)
+        self._map_odom = (x0, y0, yaw0)
+        map_odom = TransformStamped(
             header=Header(stamp=ns_to_time(0), frame_id="map"),
-            child_frame_id="odom",
+            child_frame_id=drive.odometry_frame,
             transform=Transform(
-                translation=Vector3(x=0.0, y=0.0, z=0.0),
-                rotation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+                translation=Vector3(x=x0, y=y0, z=0.0),
+                rotation=Quaternion(x=0.0, y=0.0, z=math.sin(yaw0 / 2), w=math.cos(yaw0 / 2)),
             ),
         )
-        StaticTransformBroadcaster(self._node).send_transform(identity)
+        StaticTransformBroadcaster(self._node).send_transform(map_odom)
         self._truth_xy: list[tuple[float, float]] = []
+        self._truth_pose: tuple[float, float, float] | None = None
+        self._odom_pose: tuple[float, float, float] | None = None
         self._node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 50)
+        self._node.create_subscription(Odometry, drive.odometry_topic, self._on_odom, 50)
         self._index = -1
         self._handle: Any = None
         self._starts: list[int] = []
         self._results: list[tuple[bool, float, float, float]] = []  # ok, travelled, best, time
         self._node.create_timer(0.005, self._tick)
 
+    def _spawn(self) -> tuple[float, float, float]:
+        """The robot's start pose ``(x, y, yaw)`` in the world (the map frame)."""
+        spawn = self._sim.world.metadata.get("spawn")
+        if isinstance(spawn, (list, tuple)) and len(spawn) >= 2:
+            yaw = float(spawn[2]) if len(spawn) >= 3 else 0.0
+            return float(spawn[0]), float(spawn[1]), yaw
+        return 0.0, 0.0, 0.0
+
     def _on_truth(self, msg: Odometry) -> None:
         p = msg.pose.pose.position
         self._truth_xy.append((p.x, p.y))
+        self._truth_pose = (p.x, p.y, _yaw(msg))
+
+    def _on_odom(self, msg: Odometry) -> None:
+        p = msg.pose.pose.position
+        x0, y0, yaw0 = self._map_odom
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        self._odom_pose = (x0 + c * p.x - s * p.y, y0 + s * p.x + c * p.y, yaw0 + _yaw(msg))
+
+    def odometry_drift(self) -> dict[str, Any]:
+        """The ``odometry`` summary key: the final odometry pose against ground truth."""
+        out: dict[str, Any] = {"source": self.odometry_source}
+        path = np.array(self._truth_xy) if self._truth_xy else np.zeros((0, 2))
+        out["distance_m"] = (
+            round(float(np.hypot(*np.diff(path, axis=0).T).sum()), 3) if len(path) > 1 else 0.0
+        )
+        if self._truth_pose is None or self._odom_pose is None:
+            return {**out, "drift_m": None, "heading_drift_deg": None}
+        (tx, ty, tyaw), (ox, oy, oyaw) = self._truth_pose, self._odom_pose
+        heading = math.remainder(oyaw - tyaw, 2 * math.pi)
+        out["drift_m"] = round(math.hypot(ox - tx, oy - ty), 4)
+        out["heading_drift_deg"] = round(math.degrees(heading), 3)
+        return out
 
     def _tick(self) -> None:
         self._contacts.update(self._sim.sim_time_s)
@@ -178,6 +256,16 @@ class CarTask:
         self._results.append((ok, travelled, best.length if best.ok else math.nan, duration))
         self._handle = None
 
+    def write_outputs(self, out_dir: Path) -> list[Path]:
+        """Write the mapped grid as ``map.yaml`` + ``map.pgm`` (map_saver's format)."""
+        if self.mapper.mapper.scans == 0:
+            return []
+        grid = self.mapper.mapper.to_occupancy_grid(
+            self.mapper.map_frame, self.mapper.get_clock().now_ns(), trinary=True
+        )
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return list(save_map(grid, out_dir / "map"))
+
     def done(self) -> bool:
         """True when every goal has ended."""
         return self._index == len(self.goals) - 1 and self._handle is None and bool(self._results)
@@ -197,12 +285,28 @@ class CarTask:
             "shortest_path_m": round(shortest, 3),
             "path_ratio": round(travelled / shortest, 4) if shortest > 0 else None,
             "goal_times_s": [round(r[3], 2) for r in self._results],
+            "odometry": self.odometry_drift(),
         }
 
 
-def build_car_pipeline(ctx: Context, sim: Simulator, seed: int, *, slam: bool = True) -> list[Any]:
-    """Start the car's nodes on ``ctx``; return its navigation (and SLAM) tasks."""
-    tasks: list[Any] = [CarTask(ctx, sim, seed)]
+def _yaw(msg: Odometry) -> float:
+    q = msg.pose.pose.orientation  # x, y, z, w (ROS order)
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def build_car_pipeline(
+    ctx: Context, sim: Simulator, seed: int, *, slam: bool = True, encoders: bool = False
+) -> list[Any]:
+    """Start the car's nodes on ``ctx``; return its navigation (and SLAM) tasks.
+
+    Args:
+        ctx: The graph context.
+        sim: The simulation holding the car.
+        seed: Seeds the goals and SLAM.
+        slam: Run the visual SLAM beside the navigation.
+        encoders: Require wheel-encoder odometry (an error names the plugin element to set).
+    """
+    tasks: list[Any] = [CarTask(ctx, sim, seed, encoders=encoders)]
     if slam:
         tasks.append(CarSlamTask(ctx, seed))
     return tasks

@@ -17,8 +17,9 @@ Decisions, and why:
 
 * **Frames.** Both trajectories are of ``base_footprint`` (the ground truth's child
   frame): the SLAM camera poses are moved to the base with the camera mounting from
-  ``/tf_static``. The SLAM map frame starts at the odometry pose of the first frame; the
-  car's odometry is the simulator's world pose, so the SLAM map, ``odom`` and the ground
+  ``/tf_static``. The SLAM map frame starts at the ``map -> base_footprint`` pose of the
+  first frame (the car task's static ``map -> odom``, the spawn pose, times the wheel
+  odometry a fraction of a second after the start), so the SLAM map and the ground
   truth's ``world`` coincide at the start and the unaligned ATE is meaningful too. The
   ground truth (50 Hz) is interpolated at each SLAM frame stamp (linear position, slerp
   rotation), so the pairing is exact and ``ground_truth.tum`` has the SLAM stamps.
@@ -153,7 +154,10 @@ class CarSlamTask:
             },
             parameter_overrides={
                 "base_frame": "base_footprint",
-                "odom_frame": "odom",
+                # the map is anchored at map -> base_footprint of the first frame: the car
+                # task's static map -> odom (the spawn pose with wheel odometry) times the
+                # odometry, so the SLAM map starts in the world frame as the ground truth does
+                "odom_frame": "map",
                 "publish_tf": False,
                 "odometry_prior": False,
                 "approx_sync": False,

@@ -14,6 +14,7 @@ from visnav.sim.gazebo_specs import (
     ros1_join,
     tf_resolve,
 )
+from visnav.sim.noise_models import WHEEL_NOISE_TAGS, WheelOdometryNoise, parse_wheel_noise
 from visnav.sim.urdf import Urdf
 
 __all__ = [
@@ -161,7 +162,22 @@ _DIFF_ROS2 = (
     "max_wheel_torque", "max_wheel_acceleration", "update_rate", "odometry_frame",
     "robot_base_frame", "odometry_source", "publish_odom", "publish_odom_tf", "publish_wheel_tf",
     "covariance_x", "covariance_y", "covariance_yaw", "command_topic", "odometry_topic",
+    *WHEEL_NOISE_TAGS,
 )  # fmt: skip
+
+
+def _wheel_noise(
+    reader: SdfReader, plugin: ET.Element, *, owner: str, encoder: bool
+) -> WheelOdometryNoise:
+    noise = parse_wheel_noise(reader, plugin, owner=owner)
+    if noise.active and not encoder:
+        reader.warn(
+            plugin,
+            f"{owner}wheel noise elements only act on encoder odometry and are ignored with "
+            "the world (ground-truth) source; set odometry_source to encoder (ROS 2: 0)",
+        )
+        return WheelOdometryNoise()
+    return noise
 
 
 def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffDriveSpec:
@@ -205,7 +221,9 @@ def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffD
                 f"{owner}odometrySource {source!r} is not world/encoder",
                 "write world or encoder",
             )
-        reader.unknown(plugin, _DIFF_ROS1, owner=owner, what="the diff drive plugin")
+        reader.unknown(
+            plugin, (*_DIFF_ROS1, *WHEEL_NOISE_TAGS), owner=owner, what="the diff drive plugin"
+        )
         for tag in ("publishWheelJointState",):
             if reader.boolean(plugin, tag, False, owner=owner):
                 reader.warn(
@@ -232,6 +250,8 @@ def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffD
             publish_wheel_tf=reader.boolean(plugin, "publishWheelTF", False, owner=owner),
             odometry_source="encoder" if source in ("encoder", "0") else "world",
             update_rate=reader.number(plugin, "updateRate", 100.0, owner=owner, minimum=0.0),
+            odometry_noise=_wheel_noise(reader, plugin, owner=owner,
+                                        encoder=source in ("encoder", "0")),
             ros_version=1,
         )  # fmt: skip
     node = plugin_node(reader, plugin, owner=owner)
@@ -285,6 +305,7 @@ def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffD
         covariance=(reader.number(plugin, "covariance_x", 0.00001, owner=owner, minimum=0.0),
                     reader.number(plugin, "covariance_y", 0.00001, owner=owner, minimum=0.0),
                     reader.number(plugin, "covariance_yaw", 0.001, owner=owner, minimum=0.0)),
+        odometry_noise=_wheel_noise(reader, plugin, owner=owner, encoder=source_num == 0),
         ros_version=2,
     )  # fmt: skip
     if not spec.publish_odom and not spec.publish_odom_tf:

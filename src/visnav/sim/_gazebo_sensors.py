@@ -16,6 +16,7 @@ from visnav.sim.gazebo_specs import (
     ros1_join,
     tf_resolve,
 )
+from visnav.sim.noise_models import parse_depth_noise
 
 __all__ = ["parse_camera", "parse_imu"]
 
@@ -57,6 +58,7 @@ _CAMERA_ROS1_MARKERS = (
 _CAMERA_ROS2_KNOWN = (
     "ros", "camera_name", "frame_name", "hack_baseline", "min_depth", "max_depth", "cx", "cy",
     "focal_length", "border_crop", "pointcloud", "depth_format", "use_depth_16uc1_format",
+    "depth_noise",
 )  # fmt: skip
 
 
@@ -187,6 +189,10 @@ def parse_camera(
         _camera_ros1(reader, plugin, spec, owner=owner, kind=kind, robot_name=robot_name)
     else:
         _camera_ros2(reader, plugin, spec, owner=owner, kind=kind)
+    if kind == "depth":
+        spec["depth_noise"] = parse_depth_noise(reader, plugin, owner=owner)
+    elif plugin.find("depth_noise") is not None:
+        reader.warn(plugin, f"{owner}<depth_noise> only applies to depth sensors; ignored")
     focal_given = float(spec.pop("focal_length", 0.0))  # type: ignore[arg-type]
     if focal_given and not math.isclose(focal_given, focal, rel_tol=1e-6):
         reader.warn(
@@ -347,7 +353,7 @@ def _camera_ros1(
         if not spec["pointcloud"]:
             spec["points_topic"] = None
         spec["depth_encoding"] = _depth_encoding(reader, plugin, owner=owner)
-    known = (*_CAMERA_ROS1_MARKERS, "alwaysOn", "pointcloud", "depth_format")
+    known = (*_CAMERA_ROS1_MARKERS, "alwaysOn", "pointcloud", "depth_format", "depth_noise")
     for child in plugin:
         if child.tag == "alwaysOn":
             continue  # visnav sensors are always on

@@ -20,6 +20,11 @@ the 8-bit levels; for 8-bit encodings each frame reads its samples from a seeded
 precomputed pool at a random offset (two saturating adds per frame, as cheap as a
 copy), the way Gazebo's noise shader offsets a per-pixel hash each frame.
 
+Depth noise is the plugin's ``<depth_noise>`` disparity model
+(:mod:`visnav.sim.noise_models`: error growing with the square of the range), applied
+to the valid pixels (the range check sees the true depth), so the depth image, the
+point cloud and anything derived from them (laser scans) carry it.
+
 Depth is the z coordinate in the optical frame: ``32FC1`` metres with NaN
 outside the valid range, or ``16UC1`` millimetres with 0 there. Point clouds
 are organized (height x width), in the optical frame, NaN where depth is
@@ -49,6 +54,7 @@ from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import CameraInfo, Header, Image, PointCloud2, RegionOfInterest
 from visnav.sim.gazebo import CameraSpec, LensDistortion
 from visnav.sim.gl import RenderContext, RenderingUnavailableError, select_gl_backend
+from visnav.sim.noise_models import apply_depth_noise
 
 __all__ = [
     "CameraFrame",
@@ -525,6 +531,7 @@ class CameraSensor:
             out += self.rng.normal(spec.noise.mean, spec.noise.stddev, size=out.shape).astype(
                 np.float32
             )
+        apply_depth_noise(out, spec.depth_noise, self.rng)
         out[invalid] = np.nan
         return out
 

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
+from visnav.sim.noise_models import DepthNoise, WheelOdometryNoise
 from visnav.sim.urdf import Origin
 
 __all__ = [
@@ -181,6 +182,7 @@ class CameraSpec:
     min_depth: float = 0.0
     max_depth: float = math.inf
     pointcloud: bool = True
+    depth_noise: DepthNoise = field(default_factory=DepthNoise)
     plugin: str | None = None
     plugin_name: str | None = None
     ros_version: Literal[1, 2] | None = None
@@ -269,6 +271,7 @@ class DiffDriveSpec:
     odometry_source: Literal["world", "encoder"] = "world"
     update_rate: float = 100.0
     covariance: tuple[float, float, float] = (0.00001, 0.00001, 0.001)
+    odometry_noise: WheelOdometryNoise = field(default_factory=WheelOdometryNoise)
     ros_version: Literal[1, 2] = 2
 
 

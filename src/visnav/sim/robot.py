@@ -63,6 +63,7 @@ from visnav.sim.urdf import (
     iter_links_depth_first,
     parse_urdf,
 )
+from visnav.textfile import read_text
 
 __all__ = [
     "RobotDescription",
@@ -150,12 +151,53 @@ def _xacro_find(base_dir: Path | None, packages: Mapping[str, Path | str] | None
         substitution_args._eval_find = original
 
 
+class _ArgTable(dict[str, str]):
+    """xacro's argument table, remembering the names the document declared or used."""
+
+    def __init__(self, items: Mapping[str, str]) -> None:
+        super().__init__(items)
+        self.touched: set[str] = set()
+
+    def __contains__(self, key: object) -> bool:
+        if isinstance(key, str):
+            self.touched.add(key)
+        return super().__contains__(key)
+
+    def __getitem__(self, key: str) -> str:
+        self.touched.add(key)
+        return super().__getitem__(key)
+
+
+def _include_cycle(stack: Sequence[str]) -> list[str] | None:
+    """The first file that includes itself (directly or not) in xacro's file stack."""
+    seen: dict[str, int] = {}
+    for k, name in enumerate(stack):
+        if name in seen:
+            return [Path(f).name for f in stack[seen[name] : k + 1]]
+        seen[name] = k
+    return None
+
+
+def _check_args(source: str | Path, table: _ArgTable) -> None:
+    unknown = sorted(set(table) - table.touched)
+    if unknown:
+        known = ", ".join(sorted(table.touched)) or "none"
+        given = " ".join(f"{n}:={table[n]}" for n in unknown)
+        msg = (
+            f"{source}: unknown Xacro argument{'s' if len(unknown) > 1 else ''} "
+            f"{', '.join(unknown)} (given as {given}); the file declares: {known}. "
+            "Fix: use one of those names"
+        )
+        raise RobotDescriptionError(msg)
+
+
 def expand_xacro(
     source: str | Path,
     *,
     args: Mapping[str, str] | None = None,
     packages: Mapping[str, Path | str] | None = None,
     text: str | None = None,
+    strict_args: bool = False,
 ) -> str:
     """Run Xacro on a file (or on ``text``) with ``name:=value`` arguments.
 
@@ -164,34 +206,46 @@ def expand_xacro(
         args: Xacro arguments, as ``xacro file name:=value`` would pass them.
         packages: package name -> directory for ``$(find pkg)``.
         text: the document, when it is not read from ``source``.
+        strict_args: refuse arguments the document neither declares
+            (``<xacro:arg>``) nor uses (``$(arg name)``). The ``xacro`` tool ignores
+            them, as roslaunch's ``$(find xacro)`` commands rely on; ``visnav sim
+            --arg`` is strict so that a typo is not silently dropped.
 
     Returns:
         The expanded URDF XML.
 
     Raises:
         RobotDescriptionError: Xacro failed (the message names the file and
-            Xacro's reason).
+            Xacro's reason; an include cycle is named as such), or, with
+            ``strict_args``, an unknown argument (the known ones are listed).
     """
     import xacro  # noqa: PLC0415 - optional heavy import
 
     path = Path(source)
     base_dir = path.resolve().parent if text is None else None
     mappings = {str(k): str(v) for k, v in (args or {}).items()}
+    table = _ArgTable(mappings)
     with _XACRO_LOCK, _xacro_find(base_dir, packages):
         try:
             if text is None:
-                doc = xacro.process_file(str(path), mappings=mappings)
+                doc = xacro.process_file(str(path), mappings=table)
             else:
                 xacro.init_stacks(None)
                 doc = xacro.parse(text)
-                xacro.process_doc(doc, mappings=mappings)
+                xacro.process_doc(doc, mappings=table)
         except RobotDescriptionError:
             raise
         except Exception as exc:
-            reason = " ".join((str(exc) or type(exc).__name__).split())
-            stack = " <- ".join(
-                str(f) for f in reversed(getattr(xacro, "filestack", None) or []) if f
-            )
+            files = [str(f) for f in getattr(xacro, "filestack", None) or [] if f]
+            cycle = _include_cycle(files)
+            if cycle is not None:
+                msg = (
+                    f"{source}: xacro include cycle: {' -> '.join(cycle)}. Fix: remove the "
+                    f"<xacro:include> of {cycle[-1]} from {cycle[-2]} (or guard it)"
+                )
+                raise RobotDescriptionError(msg) from None
+            reason = " ".join((str(exc) or type(exc).__name__).split())[:500]
+            stack = " <- ".join(reversed(files[-5:]))
             where = f" (in {stack})" if stack else ""
             msg = (
                 f"{source}: xacro failed{where}: {reason}. Fix: correct the Xacro; arguments "
@@ -199,6 +253,8 @@ def expand_xacro(
             )
             raise RobotDescriptionError(msg) from exc
         xml: str = doc.toxml()
+    if strict_args:
+        _check_args(source, table)
     return xml
 
 
@@ -218,7 +274,8 @@ def load_robot(
 
     Args:
         path_or_xml: a file path, or XML text (anything starting with ``<``).
-        args: Xacro ``name:=value`` arguments (ignored with a warning for plain URDF).
+        args: Xacro ``name:=value`` arguments; one the Xacro neither declares nor uses
+            is an error (ignored with a warning for plain URDF).
         packages: package name -> directory for ``package://`` and ``$(find pkg)``.
 
     Returns:
@@ -232,11 +289,7 @@ def load_robot(
     path: Path | None = None
     if isinstance(path_or_xml, Path) or not str(path_or_xml).lstrip().startswith("<"):
         path = Path(path_or_xml)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            msg = f"{path}: cannot read the robot description ({exc.strerror}). Fix: check the path"
-            raise RobotDescriptionError(msg) from exc
+        text = read_text(path, what="the robot description", error=RobotDescriptionError)
         source = str(path)
     else:
         text = str(path_or_xml)
@@ -248,6 +301,7 @@ def load_robot(
             args=args,
             packages=packages,
             text=None if path is not None else text,
+            strict_args=True,
         )
     else:
         xml = text

@@ -17,6 +17,13 @@ The plugin's behaviour (ROS 2 ``gazebo_plugins``), reproduced here on MuJoCo:
   covariances are ``covariance_x``, ``covariance_y``, ``covariance_yaw`` on the
   diagonal and 1e12 for z, roll and pitch.
 
+Encoder odometry can carry the errors of real wheels (visnav's plugin elements
+``wheel_radius_error``, ``wheel_separation_error``, ``wheel_slip``,
+``encoder_resolution``; see :mod:`visnav.sim.noise_models`): the encoder angles are
+quantised to ticks, each wheel's travel is scaled by its effective-radius factor and
+gets distance-proportional slip noise, and the heading uses the effective separation.
+The generator is seeded (``seed``), so one seed gives one odometry.
+
 Gazebo drives the wheels with ODE joint velocity motors (``vel`` and ``fmax``):
 a constraint that reaches the target velocity within one step unless that needs
 more than ``max_wheel_torque``. visnav approximates it with a torque computed
@@ -57,6 +64,7 @@ from typing import TYPE_CHECKING, Literal, Protocol
 import numpy as np
 
 from visnav.errors import VisnavError
+from visnav.sim.noise_models import WheelEncoderModel, WheelOdometryNoise
 from visnav.sim.vehicles._state import BodyReader
 
 if TYPE_CHECKING:
@@ -144,6 +152,11 @@ class DiffDriveParameters(Protocol):
         """Diagonal covariances of x, y and yaw."""
         ...
 
+    @property
+    def odometry_noise(self) -> WheelOdometryNoise:
+        """Error model of the encoder odometry."""
+        ...
+
 
 @dataclass(frozen=True, kw_only=True)
 class DiffDriveConfig:
@@ -161,6 +174,7 @@ class DiffDriveConfig:
         odometry_frame: Odometry frame id.
         robot_base_frame: Child frame id.
         covariance: ``covariance_x``, ``covariance_y``, ``covariance_yaw``.
+        odometry_noise: Error model of the encoder odometry (default: exact).
     """
 
     left_joints: tuple[str, ...]
@@ -174,6 +188,7 @@ class DiffDriveConfig:
     odometry_frame: str = "odom"
     robot_base_frame: str = "base_footprint"
     covariance: tuple[float, float, float] = (1e-5, 1e-5, 1e-3)
+    odometry_noise: WheelOdometryNoise = field(default_factory=WheelOdometryNoise)
 
 
 def _check(config: DiffDriveParameters) -> None:
@@ -304,10 +319,23 @@ class EncoderOdometry:
     rim travel ``sl``, ``sr`` and wheel separation ``b``, the heading advances by
     ``(sr - sl) / b`` and the position by ``(sl + sr) / 2`` along the mid-step
     heading.
+
+    Args:
+        wheel_separation: Nominal wheel separation (m).
+        wheel_radius: Nominal wheel radius (m).
+        model: Errors of real encoders and wheels (None: exact).
     """
 
-    def __init__(self, wheel_separation: float, wheel_radius: float) -> None:
-        self.separation = float(wheel_separation)
+    def __init__(
+        self,
+        wheel_separation: float,
+        wheel_radius: float,
+        *,
+        model: WheelEncoderModel | None = None,
+    ) -> None:
+        self.model = model
+        factor = model.separation_factor if model is not None else 1.0
+        self.separation = float(wheel_separation) * factor
         self.radius = float(wheel_radius)
         self.x = 0.0
         self.y = 0.0
@@ -323,11 +351,18 @@ class EncoderOdometry:
 
     def update(self, left_angle: float, right_angle: float, dt: float) -> None:
         """Integrate the wheel angles (rad) reached after ``dt`` seconds."""
+        model = self.model
+        if model is not None:
+            left_angle, right_angle = model.read(left_angle), model.read(right_angle)
         if self._last is None:
             self.reset(left_angle, right_angle)
             return
-        sl = (left_angle - self._last[0]) * self.radius
-        sr = (right_angle - self._last[1]) * self.radius
+        if model is not None:
+            sl = model.travel(0, left_angle - self._last[0], self.radius)
+            sr = model.travel(1, right_angle - self._last[1], self.radius)
+        else:
+            sl = (left_angle - self._last[0]) * self.radius
+            sr = (right_angle - self._last[1]) * self.radius
         self._last = (left_angle, right_angle)
         ssum = sl + sr
         sdiff = sr - sl
@@ -355,6 +390,7 @@ class DiffDriveController:
             (the ``robot_base_frame`` link, for example ``car/base_footprint``).
         prefix: The robot's name prefix in the model (joint names).
         start_ns: Sim time at which the controller starts.
+        seed: Seed of the encoder error model (``config.odometry_noise``).
 
     Raises:
         DiffDriveError: A joint or body is missing, or a parameter is invalid.
@@ -368,6 +404,7 @@ class DiffDriveController:
         base_body: str,
         prefix: str = "",
         start_ns: int = 0,
+        seed: int = 0,
     ) -> None:
         import mujoco  # noqa: PLC0415
 
@@ -406,7 +443,12 @@ class DiffDriveController:
         self._instructed = np.zeros(2 * pairs)
         self._last_update_ns = int(start_ns)
         self._last_encoder_ns: int | None = None
-        self.encoder = EncoderOdometry(config.wheel_separation[0], config.wheel_diameter[0] / 2.0)
+        noise = config.odometry_noise
+        self.encoder = EncoderOdometry(
+            config.wheel_separation[0],
+            config.wheel_diameter[0] / 2.0,
+            model=WheelEncoderModel(noise, seed=seed) if noise.active else None,
+        )
         self.odometry: DiffDriveOdometry | None = None
 
     @property

@@ -1,0 +1,63 @@
+"""``map_server``: publish a saved map file on ``map`` (latched) and ``map_metadata``.
+
+Like ROS's map_server (nav2's ``yaml_filename`` parameter; ROS 1 takes the file as its
+argument), the node loads a map_server YAML and its image with
+:func:`visnav.mapping.map_io.load_map` and publishes, once and latched (reliable,
+transient local, depth 1), ``map`` (``nav_msgs/OccupancyGrid``) and ``map_metadata``
+(``nav_msgs/MapMetaData``), stamped with the clock at load time, in ``frame_id``.
+
+Parameters: ``yaml_filename`` (required), ``frame_id`` ("map"), ``topic_name`` ("map").
+
+Where visnav differs: there is no ``static_map`` / ``map_server/load_map`` service (visnav's
+graph has no services); a launch file restarts the node with another ``yaml_filename``
+instead. A missing or invalid file is an error at start, naming the file and field.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from visnav.graph.node import Node
+from visnav.mapping.costmap_ros import MAP_QOS
+from visnav.mapping.map_io import MapFileError, OccupancyMap, load_map
+from visnav.msgs.types import MapMetaData, OccupancyGrid
+
+__all__ = ["MapServerNode"]
+
+
+class MapServerNode(Node):
+    """Publishes a saved map (module docstring).
+
+    Args:
+        name: node name (default ``map_server``).
+        **node_kwargs: passed to :class:`~visnav.graph.Node` (context, parameter_overrides).
+
+    Raises:
+        MapFileError: ``yaml_filename`` is empty, or the map files are invalid.
+    """
+
+    def __init__(self, name: str = "map_server", **node_kwargs: Any) -> None:
+        super().__init__(name, **node_kwargs)
+        d = self.declare_parameter
+        path = str(d("yaml_filename", "").value)
+        frame_id = str(d("frame_id", "map").value)
+        topic = str(d("topic_name", "map").value)
+        if not path:
+            msg = (
+                f"node {self.get_name()!r}: parameter yaml_filename is empty; expected the "
+                "path of a map YAML. Fix: set yaml_filename:=PATH/map.yaml (written by "
+                "`visnav map save` or a car run)"
+            )
+            raise MapFileError(msg)
+        self.map: OccupancyMap = load_map(path)
+        self.grid: OccupancyGrid = self.map.to_msg(
+            frame_id=frame_id, stamp_ns=self.get_clock().now_ns()
+        )
+        self._map_pub = self.create_publisher(OccupancyGrid, topic, MAP_QOS)
+        self._meta_pub = self.create_publisher(MapMetaData, "map_metadata", MAP_QOS)
+        self._map_pub.publish(self.grid)
+        self._meta_pub.publish(self.grid.info)
+        info = self.grid.info
+        self.get_logger().info(
+            f"loaded {path}: {info.width} x {info.height} cells at {info.resolution:g} m/cell"
+        )
