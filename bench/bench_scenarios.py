@@ -1,84 +1,155 @@
-"""Acceptance runs of the built-in scenarios (issues 7 and 8), over seeds.
+"""Acceptance runs of the built-in scenarios over seeds, through the sweep library (issue 15).
 
-``python bench/bench_scenarios.py car --seeds 10`` runs ``visnav run car`` for seeds
-0..9 (4 goals each in the office) and prints goals reached, collisions and the mean
-path-length ratio to the shortest grid path on the true map; ``drone --seeds 20`` flies
-20 seeded forests and prints reached / collisions / mean speed / clearance / planning
-times. Each run's summary.json goes to a temporary bench-<scenario>-*/<seed>/ directory.
-``--no-slam`` leaves the car's visual SLAM out (navigation only, ~2.5x faster);
-``--jobs 2`` runs two seeds at a time in separate processes (each run is lock-step and
-deterministic, so the figures do not depend on it; only the real-time factors do).
+``python bench/bench_scenarios.py car --seeds 0-9 --no-slam --jobs 2`` sweeps ``visnav run
+car`` over seeds 0..9 (``visnav sweep`` underneath: each run in a process of its own) and
+prints goals reached, collisions, path ratio (car) or speed / clearance / planning time
+(drone). Options:
+
+* ``--backend ray``: the runs as Ray tasks (a local Ray of ``--jobs`` CPUs).
+* ``--compare-jobs``: sweep once with one job, then with ``--jobs``; print both wall times
+  and their ratio (issue 15: two jobs <= 0.65x one job on the 2-core machine);
+  ``--repeat N`` alternates N such pairs and prints the median ratio, ``--duration S``
+  shortens every run to S simulated seconds (for the pairs on a busy machine).
+* ``--check-run``: also run ``visnav run SCENARIO --seed S`` one at a time and check each
+  sweep run has the same summary (but wall-clock keys) and a byte-identical ground-truth
+  trajectory.
+
+The sweep directories go to a temporary ``bench-<scenario>-*`` directory (printed).
 """
 
 from __future__ import annotations
 
 import argparse
-import multiprocessing
+import os
 import statistics
+import subprocess
+import sys
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
+import time
 from pathlib import Path
 from typing import Any
 
-from visnav.graph import Context
-from visnav.scenarios.runner import run_scenario
+from visnav.scenarios.sweep import SweepBackend, run_sweep
+from visnav.scenarios.sweep_check import run_differences
+from visnav.scenarios.sweep_local import LocalBackend
+from visnav.scenarios.sweep_spec import parse_seeds
 
 
-def _run(scenario: str, seed: int, out: Path, slam: bool) -> dict[str, Any]:
-    with Context(transport="local") as ctx:
-        return run_scenario(scenario, seed=seed, out=out, slam=slam, context=ctx, progress=None)
+def _backend(kind: str, jobs: int) -> SweepBackend:
+    if kind == "ray":
+        from visnav.scenarios.sweep_ray import RayBackend
+
+        return RayBackend(jobs=jobs)
+    return LocalBackend(jobs=jobs)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", choices=["car", "drone"])
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--jobs", type=int, default=1, help="seeds run at a time")
-    parser.add_argument("--no-slam", action="store_true", help="car: navigation only")
-    args = parser.parse_args()
-    out_root = Path(tempfile.mkdtemp(prefix=f"bench-{args.scenario}-"))
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    pool = ProcessPoolExecutor(
-        max_workers=max(1, args.jobs), mp_context=multiprocessing.get_context("spawn")
+def _sweep(args: argparse.Namespace, out: Path, jobs: int) -> tuple[dict[str, Any], float]:
+    sets: dict[str, list[Any]] = {"slam": [False]} if args.no_slam else {}
+    if args.duration is not None:
+        sets["duration"] = [args.duration]
+    t0 = time.perf_counter()
+    state = run_sweep(
+        args.scenario,
+        out=out,
+        backend=_backend(args.backend, jobs),
+        seeds=parse_seeds(args.seeds),
+        sets=sets,
+        progress=sys.stderr,
+        report=False,
     )
-    futures = [
-        pool.submit(_run, args.scenario, seed, out_root / str(seed), not args.no_slam)
-        for seed in seeds
-    ]
-    rows = []
-    for seed, future in zip(seeds, futures, strict=True):
-        s = future.result()
-        rows.append(s)
+    return state, time.perf_counter() - t0
+
+
+def _print_runs(scenario: str, state: dict[str, Any]) -> None:
+    rows = [r["summary"] for r in state["runs"] if r["status"] == "ok"]
+    for r in state["runs"]:
+        if r["status"] != "ok":
+            print(f"seed {r['seed']}: FAILED {r['reason']}")
+    for s in rows:
         extra = (
             f"ratio {s.get('path_ratio')}"
-            if args.scenario == "car"
+            if scenario == "car"
             else f"speed {s['mean_speed_mps']} m/s clearance {s['min_clearance_m']} m "
             f"plan median {s['planning_time_ms']['median']} ms"
         )
         print(
-            f"seed {seed}: {s['goals_reached']}/{s['goals_total']} goals, {s['collisions']} collisions, "
-            f"{extra}, sim {s['sim_duration_s']:.0f} s, RTF {s['real_time_factor']}",
-            flush=True,
+            f"seed {s['seed']}: {s['goals_reached']}/{s['goals_total']} goals, "
+            f"{s['collisions']} collisions, {extra}, sim {s['sim_duration_s']:.0f} s, "
+            f"RTF {s['real_time_factor']}"
         )
         if "slam" in s:
-            print(f"  slam {s['slam']}", flush=True)
-    pool.shutdown()
+            print(f"  slam {s['slam']}")
+    if not rows:
+        return
     goals = sum(r["goals_total"] for r in rows)
     reached = sum(r["goals_reached"] for r in rows)
-    collisions = sum(r["collisions"] for r in rows)
-    print(
-        f"goals reached {reached}/{goals} ({100 * reached / goals:.1f} %), collisions {collisions}"
+    print(f"goals reached {reached}/{goals}, collisions {sum(r['collisions'] for r in rows)}")
+    ratios = [r["path_ratio"] for r in rows if r.get("path_ratio")]
+    if ratios:
+        print(f"mean path ratio {statistics.mean(ratios):.3f} (target <= 1.3)")
+    speeds = [r["mean_speed_mps"] for r in rows if "mean_speed_mps" in r and scenario == "drone"]
+    if speeds:
+        print(f"mean speed {statistics.mean(speeds):.2f} m/s (target >= 1.5)")
+
+
+def _check_run(args: argparse.Namespace, root: Path, state: dict[str, Any]) -> int:
+    bad = 0
+    for run in state["runs"]:
+        ref = (args.reference or root / "visnav-run") / str(run["seed"])
+        if (ref / "summary.json").is_file():  # from an earlier bench (--reference DIR)
+            diffs = run_differences(root / "jobs" / run["dir"], ref)
+            verdict = "identical" if not diffs else "DIFFERENT: " + "; ".join(diffs)
+            print(f"seed {run['seed']}: sweep run vs {ref}: {verdict}", flush=True)
+            bad += bool(diffs)
+            continue
+        cmd = [sys.executable, "-m", "visnav.cli.main", "run", args.scenario, "--quiet"]
+        cmd += ["--seed", str(run["seed"]), "--out", str(ref)]
+        cmd += ["--no-slam"] if args.no_slam else []
+        env = {**os.environ, "VISNAV_DOMAIN": str(3_000_000 + os.getpid() % 100_000)}
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+        wall = time.perf_counter() - t0
+        diffs = run_differences(root / "jobs" / run["dir"], ref)
+        verdict = "identical" if not diffs else "DIFFERENT: " + "; ".join(diffs)
+        print(f"seed {run['seed']}: visnav run {wall:.1f} s; sweep run {verdict}", flush=True)
+        bad += bool(diffs)
+    return bad
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("scenario", choices=["car", "drone"])
+    parser.add_argument("--seeds", default="0-9", help="0-9, 0,3,7, ...")
+    parser.add_argument("--jobs", type=int, default=1, help="runs at a time")
+    parser.add_argument("--backend", choices=["local", "ray"], default="local")
+    parser.add_argument("--no-slam", action="store_true", help="car: navigation only")
+    parser.add_argument("--compare-jobs", action="store_true", help="also time one job")
+    parser.add_argument("--repeat", type=int, default=1, help="--compare-jobs: pairs to time")
+    parser.add_argument("--duration", type=float, default=None, help="sim seconds per run")
+    parser.add_argument("--check-run", action="store_true", help="compare with visnav run")
+    parser.add_argument(
+        "--reference", type=Path, default=None, help="--check-run: visnav-run/ of an earlier bench"
     )
-    if args.scenario == "car":
-        ratios = [r["path_ratio"] for r in rows if r.get("path_ratio")]
-        if ratios:
-            print(f"mean path ratio {statistics.mean(ratios):.3f} (target <= 1.3)")
-    else:
-        print(
-            f"mean speed {statistics.mean(r['mean_speed_mps'] for r in rows):.2f} m/s (target >= 1.5)"
-        )
-        print(f"min clearance {min(r['min_clearance_m'] for r in rows):.3f} m")
+    args = parser.parse_args()
+    root = Path(tempfile.mkdtemp(prefix=f"bench-{args.scenario}-"))
+    print(f"output in {root}; load average {os.getloadavg()}", flush=True)
+    ratios = []
+    for rep in range(args.repeat if args.compare_jobs else 1):
+        if args.compare_jobs:  # alternate, so that a change of the machine's load hits both
+            _, wall_one = _sweep(args, root / f"one-job-{rep}", 1)
+            print(f"one job: {wall_one:.1f} s wall; load average {os.getloadavg()}", flush=True)
+        out = root / ("jobs" if rep == 0 else f"jobs-{rep}")
+        state, wall = _sweep(args, out, args.jobs)
+        print(f"{args.jobs} job(s), {args.backend}: {wall:.1f} s wall; load {os.getloadavg()}")
+        if args.compare_jobs:
+            ratios.append(wall / wall_one)
+            print(f"ratio {args.jobs} jobs / one job: {ratios[-1]:.3f}", flush=True)
+        if rep == 0:
+            _print_runs(args.scenario, state)
+    if ratios:
+        print(f"median ratio over {len(ratios)}: {statistics.median(ratios):.3f} (target <= 0.65)")
+    if args.check_run and _check_run(args, root, state):
+        sys.exit(1)
 
 
 if __name__ == "__main__":

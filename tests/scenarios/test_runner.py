@@ -44,6 +44,10 @@ def test_short_car_run_summary_and_bag(tmp_path: Path) -> None:
     assert "/ground_truth/odom" in str(recorded)
     assert "/camera/image_raw" not in str(recorded)  # bulky topics left out by default
     assert "scenario car" in format_summary(summary)
+    # ground-truth odometry until SLAM closes the loop (--no-ideal-sensors: wheel encoders)
+    assert summary["odometry"]["source"] == "world"
+    assert summary["odometry"]["drift_m"] < 0.01
+    assert (tmp_path / "run" / "map.yaml").read_text().startswith("image: map.pgm\n")
 
 
 def test_unknown_scenario_suggests() -> None:

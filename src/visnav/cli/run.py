@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from visnav.outpaths import check_output_dir
 from visnav.scenarios.runner import SCENARIOS, format_summary, run_scenario
 
 __all__ = ["add_arguments"]
@@ -17,10 +18,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of world, sensors and task")
     parser.add_argument("--out", default=None, help="output directory (default runs/<time>)")
     parser.add_argument("--record-all", action="store_true", help="also record images and clouds")
+    parser.add_argument(
+        "--record-images",
+        action="store_true",
+        help="also record the camera images (for `visnav view BAG`), not the clouds",
+    )
     parser.add_argument("--realtime", action="store_true", help="pace to the wall clock")
     parser.add_argument("--view", action="store_true", help="stream to the Rerun web viewer")
     parser.add_argument(
         "--no-slam", action="store_true", help="car: skip the visual SLAM (about 2.5x faster)"
+    )
+    parser.add_argument(
+        "--ideal-sensors",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="car: ground-truth odometry and noise-free cameras (the default until SLAM "
+        "closes the loop); --no-ideal-sensors: wheel-encoder odometry with slip, camera and "
+        "depth noise (docs/simulator.md)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=cmd_run)
@@ -28,15 +42,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run the scenario and print the summary table."""
+    if args.out is not None:
+        check_output_dir(args.out, what="the run's output directory (--out)")
     summary = run_scenario(
         args.scenario,
         seed=args.seed,
         duration_s=args.duration,
         out=args.out,
         record_all=args.record_all,
+        record_images=args.record_images,
         realtime=args.realtime,
         view=args.view,
         slam=not args.no_slam,
+        ideal_sensors=args.ideal_sensors,
         progress=None if args.quiet else sys.stderr,
     )
     print(format_summary(summary))

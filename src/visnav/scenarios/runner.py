@@ -18,6 +18,8 @@ count, rate_hz}}), plus the task keys of the pipeline pieces that ran (``goals_t
 Where visnav differs from recording everything with ``ros2 bag record -a``: raw camera
 images and point clouds are left out of the scenario bag by default (``record_all=True``
 / ``--record-all`` keeps them): at 640x480 they are ~130 MB per simulated second.
+``record_images=True`` / ``--record-images`` keeps the camera images only, so that
+``visnav view BAG`` shows them beside the 3D view.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import difflib
+import functools
 import json
 import math
 import sys
@@ -39,10 +42,10 @@ from visnav.graph.context import Context
 from visnav.graph.introspect import (
     new_published_topics,
     subscription_qos_for,
-    wait_for_discovery,
 )
 from visnav.graph.node import Node
 from visnav.msgs.serde import get_message_class
+from visnav.sim.guards import SecondSimulationError, refuse_second_simulation
 from visnav.sim.simulator import RobotSpawn, Simulator
 from visnav.sim.world import load_world
 
@@ -84,10 +87,12 @@ class ScenarioDef:
     namespace: str = "/"
 
 
-def _build_car(ctx: Context, sim: Simulator, seed: int, slam: bool) -> list[ScenarioTask]:
+def _build_car(
+    ctx: Context, sim: Simulator, seed: int, slam: bool, *, encoders: bool = True
+) -> list[ScenarioTask]:
     from visnav.scenarios.car import build_car_pipeline  # noqa: PLC0415 - only when run
 
-    return build_car_pipeline(ctx, sim, seed, slam=slam)
+    return build_car_pipeline(ctx, sim, seed, slam=slam, encoders=encoders)
 
 
 def _build_drone(ctx: Context, sim: Simulator, seed: int, slam: bool) -> list[ScenarioTask]:
@@ -151,30 +156,55 @@ class TopicCounter:
 
 
 class _Progress:
+    """The run's progress bar (rich): sim seconds done, real-time factor, ETA.
+
+    On a terminal it is a live bar; otherwise (a log file, a pipe) one line per tenth.
+    """
+
     def __init__(self, name: str, total_s: float, stream: TextIO) -> None:
-        self.name, self.total, self.stream = name, total_s, stream
-        self.tty = stream.isatty()
-        self._last = 0.0
+        from rich.console import Console  # noqa: PLC0415 - only with progress output
+        from rich.progress import (  # noqa: PLC0415
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.name, self.total = name, total_s
+        self.console = Console(file=stream)
         self._last_decile = -1
+        self._bar = Progress(
+            TextColumn("[{task.description}]", markup=False),
+            BarColumn(),
+            TextColumn("sim {task.completed:6.1f}/{task.total:g} s  RTF {task.fields[rtf]:4.2f}"),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=self.console,
+            auto_refresh=self.console.is_terminal,
+        )
+        self._task = self._bar.add_task(name, total=total_s, rtf=0.0)
+        if self.console.is_terminal:
+            self._bar.start()
 
     def update(self, sim_s: float, rtf: float, *, final: bool = False) -> None:
-        now = time.monotonic()
-        frac = min(1.0, sim_s / self.total) if self.total > 0 else 1.0
-        if self.tty:
-            if not final and now - self._last < 0.25:
-                return
-            self._last = now
-            bar = "#" * int(frac * 30)
-            end = "\n" if final else ""
-            text = f"[{self.name}] {bar:<30} sim {sim_s:6.1f}/{self.total:.0f} s  RTF {rtf:4.2f}"
-            self.stream.write(f"\r{text}{end}")
-            self.stream.flush()
+        self._bar.update(self._task, completed=min(sim_s, self.total), rtf=rtf)
+        if self.console.is_terminal:
+            if final:
+                self._bar.refresh()
+                self.close()
             return
+        frac = min(1.0, sim_s / self.total) if self.total > 0 else 1.0
         decile = int(frac * 10)
         if decile != self._last_decile or final:
             self._last_decile = decile
-            self.stream.write(f"[{self.name}] sim {sim_s:.1f}/{self.total:.0f} s  RTF {rtf:.2f}\n")
-            self.stream.flush()
+            text = f"[{self.name}] sim {sim_s:.1f}/{self.total:g} s  RTF {rtf:.2f}"
+            self.console.print(text, markup=False, highlight=False)
+
+    def close(self) -> None:
+        """Stop the live bar (idempotent)."""
+        self._bar.stop()
 
 
 def _out_dir(out: str | Path | None) -> Path:
@@ -191,9 +221,11 @@ def run_scenario(
     duration_s: float | None = None,
     out: str | Path | None = None,
     record_all: bool = False,
+    record_images: bool = False,
     realtime: bool = False,
     view: bool = False,
     slam: bool = True,
+    ideal_sensors: bool = True,
     context: Context | None = None,
     progress: TextIO | None = sys.stderr,
 ) -> dict[str, Any]:
@@ -205,10 +237,16 @@ def run_scenario(
         duration_s: simulated seconds (default: the scenario's, 60 s for the car).
         out: output directory (default ``runs/<UTC timestamp>``); must not hold a bag yet.
         record_all: also record raw images and point clouds.
+        record_images: also record the camera images (not the point clouds).
         realtime: pace the simulation to the wall clock.
         view: stream the run to the Rerun viewer (needs ``visnav[viz]``).
         slam: run the car's visual SLAM and score it (``slam`` summary key); off makes
             ``visnav run car`` about 2.5x faster.
+        ideal_sensors: car: ground-truth odometry and noise-free cameras (the robot's
+            Xacro ``ideal_sensors:=true``; the default until SLAM publishes ``map -> odom``:
+            with the static ``map -> odom`` the odometry drift goes straight into
+            navigation); False: drifting wheel-encoder odometry and the camera / depth
+            noise models (summary key ``odometry.source``).
         context: the graph context (default: a new one, with the Zenoh transport so other
             processes see the run).
         progress: where the progress bar goes (None: no progress output).
@@ -238,11 +276,24 @@ def run_scenario(
     try:
         _refuse_a_second_simulation(ctx)
         world = load_world(sdef.world, seed=seed)
-        spawn = RobotSpawn(source=sdef.robot, namespace=sdef.namespace)
+        robot_args = {"ideal_sensors": "true"} if ideal_sensors and sdef.robot == "car" else {}
+        if sdef.build is _build_car and ideal_sensors:
+            sdef = dataclasses.replace(sdef, build=functools.partial(_build_car, encoders=False))
+        spawn = RobotSpawn(source=sdef.robot, args=robot_args, namespace=sdef.namespace)
         sim = Simulator(world, [spawn], context=ctx, seed=seed, realtime=realtime)
         try:
             return _run(
-                sdef, ctx, sim, seed, duration, out_dir, bag_path, record_all, view, slam, progress
+                sdef,
+                ctx,
+                sim,
+                seed,
+                duration,
+                out_dir,
+                bag_path,
+                "all" if record_all else "images" if record_images else "",
+                view,
+                slam,
+                progress,
             )
         finally:
             sim.close()
@@ -253,17 +304,10 @@ def run_scenario(
 
 def _refuse_a_second_simulation(ctx: Context) -> None:
     """Two simulations in one domain would mix their clocks, TF and commands: refuse."""
-    if ctx.zenoh is not None:
-        wait_for_discovery(ctx, timeout_s=1.0)
-    clocks = [e for e in ctx.graph.endpoints("/clock") if e.kind == "publisher"]
-    if clocks:
-        msg = (
-            f"another simulation already publishes /clock in graph domain {ctx.domain!r} "
-            f"(node {clocks[0].node_fqn}): two simulations in one domain mix their clocks, TF "
-            "and commands; stop it, or run this one in a domain of its own "
-            "(VISNAV_DOMAIN=<number> visnav run ...)"
-        )
-        raise ScenarioError(msg)
+    try:
+        refuse_second_simulation(ctx, command="visnav run")
+    except SecondSimulationError as exc:
+        raise ScenarioError(str(exc)) from None
 
 
 def _run(
@@ -274,14 +318,14 @@ def _run(
     duration: float,
     out_dir: Path,
     bag_path: Path,
-    record_all: bool,
+    record: str,
     view: bool,
     slam: bool,
     progress: TextIO | None,
 ) -> dict[str, Any]:
     tasks = sdef.build(ctx, sim, seed, slam)
     counter = TopicCounter(ctx, lambda: sim.now_ns)
-    exclude = None if record_all else _bulky_exclusion(ctx)
+    exclude = None if record == "all" else _bulky_exclusion(ctx, keep_images=record == "images")
     recorder = BagRecorder(
         ctx, None, bag_path, compression="zstd", exclude=exclude, use_sim_time=True
     )
@@ -305,6 +349,10 @@ def _run(
                 )
             if tasks and all(t.done() for t in tasks):
                 break
+    except BaseException:
+        if bar is not None:
+            bar.close()
+        raise
     finally:
         recorder.stop()
         if feed is not None:
@@ -331,11 +379,10 @@ def _run(
     return summary
 
 
-def _bulky_exclusion(ctx: Context) -> str | None:
+def _bulky_exclusion(ctx: Context, *, keep_images: bool = False) -> str | None:
+    left_out = set(_BULKY_TYPES) - ({"sensor_msgs/msg/Image"} if keep_images else set())
     bulky = sorted(
-        topic
-        for topic, types in ctx.graph.topic_names_and_types()
-        if set(types) & set(_BULKY_TYPES)
+        topic for topic, types in ctx.graph.topic_names_and_types() if set(types) & left_out
     )
     if not bulky:
         return r"^$"

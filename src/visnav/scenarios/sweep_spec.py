@@ -1,0 +1,255 @@
+"""What a sweep runs: seeds x settings, parsed and checked before anything runs.
+
+``--seeds 0-99`` (a range, both ends included), ``--seeds 0,3,7`` or ``--seeds 4``;
+``--set key=v1,v2`` (one option of :func:`~visnav.scenarios.runner.run_scenario`, the
+values one setting each; several ``--set`` give their cartesian product). Every run
+gets its own directory ``runs/<setting>/<seed>`` and its own graph domain, derived
+from the sweep's random id and the run's index so that no two runs of a sweep share
+one, on one machine or across a cluster.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from visnav.errors import VisnavError
+from visnav.scenarios.runner import SCENARIOS
+
+__all__ = [
+    "DOMAIN_BASE",
+    "RUN_OPTIONS",
+    "RunOption",
+    "RunSpec",
+    "SweepError",
+    "check_scenario",
+    "domain_for",
+    "expand_runs",
+    "parse_seeds",
+    "parse_sets",
+    "setting_label",
+]
+
+DOMAIN_BASE = 1 << 30
+"""Sweep run domains are ``DOMAIN_BASE + (sweep_id + index) mod 2**30`` (high, private)."""
+
+
+class SweepError(VisnavError, ValueError):
+    """Bad sweep input (seeds, settings, scenario, backend) or an unusable sweep directory."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RunOption:
+    """One ``--set`` key: the :func:`run_scenario` keyword it sets and its type."""
+
+    keyword: str
+    type_name: str
+    parse: Callable[[str], Any]
+    help: str
+
+
+def _parse_bool(text: str) -> bool:
+    low = text.strip().lower()
+    if low in ("true", "1", "yes", "on"):
+        return True
+    if low in ("false", "0", "no", "off"):
+        return False
+    raise ValueError(text)
+
+
+def _parse_seconds(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(text)
+    return value
+
+
+RUN_OPTIONS: dict[str, RunOption] = {
+    "slam": RunOption("slam", "bool", _parse_bool, "car: run and score the visual SLAM"),
+    "duration": RunOption(
+        "duration_s", "float > 0", _parse_seconds, "simulated seconds (default: scenario's)"
+    ),
+    "record_all": RunOption("record_all", "bool", _parse_bool, "also record images and clouds"),
+    "record_images": RunOption(
+        "record_images", "bool", _parse_bool, "also record the camera images (not the clouds)"
+    ),
+    "realtime": RunOption("realtime", "bool", _parse_bool, "pace the run to the wall clock"),
+    "ideal_sensors": RunOption(
+        "ideal_sensors", "bool", _parse_bool, "car: ground-truth odometry, noise-free cameras"
+    ),
+}
+"""The seed-independent options of ``visnav run`` a sweep may vary (``--set KEY=...``)."""
+
+
+def _valid_keys() -> str:
+    return ", ".join(f"{k} ({o.type_name})" for k, o in RUN_OPTIONS.items())
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Parse ``A-B`` (inclusive), ``A,B,C`` or ``A`` into a list of distinct seeds.
+
+    Raises:
+        SweepError: not that form, a negative seed, or a range whose end is before its start.
+    """
+    if not text.strip():
+        msg = "--seeds is empty: the sweep would run nothing; give for example --seeds 0-9"
+        raise SweepError(msg)
+    seeds: list[int] = []
+    for part in (p.strip() for p in text.split(",")):
+        m = re.fullmatch(r"(\d+)\s*-\s*(\d+)|(\d+)", part)
+        if m is None:
+            msg = (
+                f"--seeds {text!r}: {part!r} is not a seed or a range; expected for example "
+                "0-99, 0,3,7 or 4 (non-negative integers)"
+            )
+            raise SweepError(msg)
+        if m.group(3) is not None:
+            seeds.append(int(m.group(3)))
+            continue
+        lo, hi = int(m.group(1)), int(m.group(2))
+        if hi < lo:
+            msg = f"--seeds {text!r}: the range {part} ends before it starts; write {hi}-{lo}"
+            raise SweepError(msg)
+        seeds.extend(range(lo, hi + 1))
+    return list(dict.fromkeys(seeds))
+
+
+def parse_sets(items: Sequence[str]) -> dict[str, list[Any]]:
+    """Parse ``--set key=v1,v2`` items into ``{key: [values]}`` (keys in given order).
+
+    Raises:
+        SweepError: no ``=``, an unknown key, a repeated key, an empty value list or a
+            value of the wrong type; the message lists the valid keys with their types.
+    """
+    out: dict[str, list[Any]] = {}
+    for item in items:
+        key, sep, values = item.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or key not in RUN_OPTIONS:
+            what = f"unknown key {key!r}" if sep else "no '=' in it"
+            msg = f"--set {item!r}: {what}; expected KEY=V1,V2 with KEY one of {_valid_keys()}"
+            raise SweepError(msg)
+        if key in out:
+            msg = f"--set {item!r}: {key} is set twice; give all its values in one --set"
+            raise SweepError(msg)
+        option = RUN_OPTIONS[key]
+        parsed: list[Any] = []
+        for raw in values.split(","):
+            try:
+                parsed.append(option.parse(raw))
+            except ValueError:
+                msg = (
+                    f"--set {item!r}: {key}={raw!r} is not a {option.type_name}; valid keys: "
+                    f"{_valid_keys()}"
+                )
+                raise SweepError(msg) from None
+        out[key] = list(dict.fromkeys(parsed))
+    return out
+
+
+def _format_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
+def setting_label(setting: dict[str, Any]) -> str:
+    """The directory name of a setting: ``slam=false,duration=5``, or ``default``."""
+    if not setting:
+        return "default"
+    return ",".join(f"{k}={_format_value(v)}" for k, v in setting.items())
+
+
+def domain_for(sweep_id: int, index: int) -> int:
+    """The graph domain of run ``index`` of sweep ``sweep_id`` (distinct within a sweep)."""
+    return DOMAIN_BASE + (sweep_id + index) % DOMAIN_BASE
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSpec:
+    """One run of a sweep: the scenario, a setting, a seed and where it goes."""
+
+    index: int
+    scenario: str
+    setting: str
+    options: dict[str, Any]
+    seed: int
+    domain: int
+
+    @property
+    def rel_dir(self) -> str:
+        """The run's directory relative to the sweep directory."""
+        return f"runs/{self.setting}/{self.seed}"
+
+    @property
+    def key(self) -> str:
+        """``<setting>/<seed>``: unique within a sweep."""
+        return f"{self.setting}/{self.seed}"
+
+    def run_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of :func:`run_scenario` for this run (not ``out``)."""
+        kwargs = {RUN_OPTIONS[k].keyword: v for k, v in self.options.items()}
+        return {"seed": self.seed, **kwargs}
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-able dict (:meth:`from_json` reverses it)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> RunSpec:
+        """Rebuild a spec written by :meth:`to_json`."""
+        return cls(
+            index=int(data["index"]),
+            scenario=str(data["scenario"]),
+            setting=str(data["setting"]),
+            options=dict(data["options"]),
+            seed=int(data["seed"]),
+            domain=int(data["domain"]),
+        )
+
+
+def check_scenario(name: str) -> str:
+    """Return ``name`` if it is a built-in scenario, else raise a one-line error.
+
+    Raises:
+        SweepError: a scenario file or an unknown name (``visnav run`` runs only the
+            built-in scenarios, so a sweep does too).
+    """
+    if name in SCENARIOS:
+        return name
+    looks_like_file = "/" in name or "." in name
+    what = "scenario files are not supported yet" if looks_like_file else "unknown scenario"
+    msg = (
+        f"scenario {name!r}: {what}; visnav run (and so visnav sweep) runs the built-in "
+        f"scenarios {', '.join(SCENARIOS)}"
+    )
+    raise SweepError(msg)
+
+
+def expand_runs(
+    scenario: str, seeds: Sequence[int], sets: dict[str, list[Any]], *, sweep_id: int
+) -> list[RunSpec]:
+    """The cartesian product of settings and seeds, settings outermost.
+
+    Raises:
+        SweepError: the product is empty.
+    """
+    scenario = check_scenario(scenario)
+    keys = list(sets)
+    settings = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*sets.values())]
+    if not seeds or not settings:
+        msg = "the sweep is empty (no seeds or a --set without values); give --seeds 0-9, say"
+        raise SweepError(msg)
+    runs: list[RunSpec] = []
+    for setting in settings:
+        label = setting_label(setting)
+        for seed in seeds:
+            index = len(runs)
+            runs.append(RunSpec(index, scenario, label, setting, seed, domain_for(sweep_id, index)))
+    return runs
