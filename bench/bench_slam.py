@@ -1,6 +1,6 @@
 """RGB-D SLAM benchmark at 640 x 480 on a synthetic textured room (exact depth).
 
-Run: ``python bench/bench_slam.py [--frames N] [--runs R]``. Renders a loop of
+Run: ``python bench/bench_slam.py [--frames N] [--runs R] [--no-icp]``. Renders a loop of
 frames first (not timed), then runs SLAM ``R`` times over them and prints, per
 stage, the median milliseconds per frame (features, matching, pose for every
 frame; mapping and loop on keyframes, also averaged over all frames), the
@@ -38,6 +38,9 @@ def main() -> int:
     parser.add_argument(
         "--mono", action="store_true", help="only compare monocular with RGB-D (see _mono)"
     )
+    parser.add_argument(
+        "--no-icp", action="store_true", help="features only (no dense ICP refinement)"
+    )
     args = parser.parse_args()
     if args.mono:
         return _mono(args.frames, args.runs)
@@ -64,7 +67,8 @@ def main() -> int:
     kf_mapping: list[float] = []
     ate_rmse: list[float] = []
     for _ in range(args.runs):
-        slam = SlamSystem(CAM, SlamConfig(final_global_ba=False), initial_pose=poses[0])
+        cfg = SlamConfig(final_global_ba=False, icp_refinement=not args.no_icp)
+        slam = SlamSystem(CAM, cfg, initial_pose=poses[0])
         for (rgb, depth), t in zip(frames, stamps, strict=True):
             start = time.perf_counter()
             result = slam.track(rgb, depth, int(t))

@@ -64,6 +64,11 @@ class SlamConfig:
     the two views (``"odometry"``); new points are triangulated with the
     ``triangulation_neighbours`` best covisible keyframes. The scale drifts.
 
+    Dense refinement (RGB-D, :mod:`visnav.slam.dense`): with ``icp_refinement`` each
+    tracked pose is refined by point-to-plane ICP of its depth (every ``icp_stride``-th
+    pixel) against the reference keyframe's, the feature pose's information as a
+    prior; the ``icp_keyframes`` most recent keyframes keep their depth for it.
+
     ``seed`` seeds every random choice (RANSAC, vocabulary); ``dense_stride`` is the
     pixel stride of the points kept per keyframe for the dense cloud.
     """
@@ -107,6 +112,9 @@ class SlamConfig:
     global_ba_iterations: int = 15
     seed: int = 0
     dense_stride: int = 8
+    icp_refinement: bool = True
+    icp_stride: int = 6
+    icp_keyframes: int = 8
     reinit_after_lost: int = 5
     sensor: Literal["rgbd", "mono"] = "rgbd"
     mono_scale: Literal["depth", "odometry"] = "depth"
@@ -116,7 +124,8 @@ class SlamConfig:
 
     def __post_init__(self) -> None:
         check_mono_settings(self.sensor, self.mono_scale)
-        for name in ("n_features", "n_levels", "grid_cell", "ba_iterations", "dense_stride"):
+        ints = ("n_features", "n_levels", "grid_cell", "ba_iterations", "dense_stride")
+        for name in (*ints, "icp_stride", "icp_keyframes"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 flag = " (--features)" if name == "n_features" else ""

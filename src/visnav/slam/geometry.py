@@ -23,6 +23,7 @@ __all__ = [
     "optimize_pose",
     "orthonormalize",
     "pose_covariance",
+    "pose_information",
     "project",
     "rotation_angle",
     "se3_exp",
@@ -249,6 +250,21 @@ def optimize_pose(
     return orthonormalize(t), inlier
 
 
+def pose_information(
+    cam: CameraIntrinsics, t_cw: FloatArray, obs: PoseObservations, inliers: BoolArray
+) -> FloatArray:
+    """Gauss-Newton information (6x6, twist rho, phi) of the inlier matches of a pose.
+
+    One pixel standard deviation at pyramid level 0 (:func:`pose_covariance` inverts it).
+    """
+    stereo = np.isfinite(obs.u_right)
+    pc = transform(t_cw, obs.points_w[inliers])
+    jac = _jacobian(cam, pc, stereo[inliers]).reshape(-1, 6)
+    w_rows = np.repeat(obs.inv_sigma2[inliers], 3)
+    h: FloatArray = (jac * w_rows[:, None]).T @ jac
+    return h
+
+
 def pose_covariance(
     cam: CameraIntrinsics, t_cw: FloatArray, obs: PoseObservations, inliers: BoolArray
 ) -> FloatArray:
@@ -258,13 +274,9 @@ def pose_covariance(
     standard deviation at pyramid level 0; a large value along some direction means
     the matches do not pin the pose down (few points, all far or on one plane).
     """
-    stereo = np.isfinite(obs.u_right)
-    pc = transform(t_cw, obs.points_w[inliers])
-    jac = _jacobian(cam, pc, stereo[inliers]).reshape(-1, 6)
-    w_rows = np.repeat(obs.inv_sigma2[inliers], 3)
-    h = (jac * w_rows[:, None]).T @ jac
+    h = pose_information(cam, t_cw, obs, inliers)
     try:
-        cov: FloatArray = np.linalg.inv(h + 1e-12 * np.eye(6))
+        cov: FloatArray = np.linalg.inv(h + 1e-12 * np.eye(6)).astype(np.float64)
     except np.linalg.LinAlgError:
         return np.full((6, 6), np.inf)
     return cov

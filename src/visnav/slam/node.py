@@ -21,7 +21,9 @@ the node publishes ``map -> base_frame`` itself. Parameters: ``map_frame``,
 ``odom_frame``, ``base_frame``, ``publish_tf``, ``transform_tolerance`` (s the
 map -> odom stamp is post-dated, as amcl), ``tf_publish_period``, ``queue_size``,
 ``approx_sync``, ``depth_scale`` (16UC1 units per metre), ``n_features``,
-``seed``, ``loop_closure``, ``local_ba``, ``vocabulary`` (a saved ``.npz``),
+``seed``, ``loop_closure``, ``local_ba``, ``icp_refinement`` (dense ICP refinement of
+each pose, :mod:`visnav.slam.dense`), ``depth_noise`` (``sigma_z / z^2`` of the depth;
+about 0.002 for a Kinect-like sensor), ``vocabulary`` (a saved ``.npz``),
 ``max_frame_rate`` (Hz; 0: every frame), ``odometry_prior``, ``sensor`` (``rgbd`` or
 ``mono``) and ``mono_scale`` (``depth``: the depth image scales the monocular map at
 initialisation; ``odometry``: TF ``odom -> base`` does, and ``depth/image`` is not
@@ -136,6 +138,8 @@ class SlamNode(Node):
             seed=int(p("seed", 0).value),
             loop_closure=bool(p("loop_closure", value=True).value),
             local_ba=bool(p("local_ba", value=True).value),
+            icp_refinement=bool(p("icp_refinement", value=True).value),
+            depth_noise=float(p("depth_noise", SlamConfig.depth_noise).value),
             depth_scale=depth_scale,
             sensor=str(p("sensor", "rgbd").value),  # type: ignore[arg-type]
             mono_scale=str(p("mono_scale", "depth").value),  # type: ignore[arg-type]

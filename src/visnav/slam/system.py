@@ -20,27 +20,28 @@ and bundle adjustment move the whole trajectory (:meth:`SlamSystem.trajectory`).
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from visnav.slam.camera import CameraIntrinsics, check_depth_scale, depth_to_metres
+from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.clouds import depth_samples, voxel_average
 from visnav.slam.config import SlamConfig, TrackingState, TrackResult
-from visnav.slam.errors import SlamInputError
+from visnav.slam.dense import DenseTracker
 from visnav.slam.features import Frame, OrbExtractor
 from visnav.slam.geometry import (
     PoseObservations,
     inverse,
     optimize_pose,
     orthonormalize,
+    pose_information,
     project,
     rotation_angle,
 )
+from visnav.slam.inputs import STAGES, Stopwatch, prepare_inputs, virtual_baseline
 from visnav.slam.loop_closing import LoopCloser
 from visnav.slam.mapping import create_points, cull_recent_points, fuse_points
 from visnav.slam.matching import search_by_projection
@@ -61,38 +62,12 @@ __all__ = ["STAGES", "SlamSystem"]
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-STAGES = ("features", "matching", "pose", "mapping", "loop")
-
 
 @dataclass
 class _FrameRecord:
     stamp_ns: int
     ref_kf: int
     t_c_ref: FloatArray
-
-
-@dataclass
-class _Stopwatch:
-    times: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
-    _t: float = 0.0
-    _stage: str = ""
-
-    def start(self, stage: str) -> None:
-        now = time.perf_counter()
-        if self._stage:
-            self.times[self._stage] += now - self._t
-        self._stage, self._t = stage, now
-
-    def stop(self) -> dict[str, float]:
-        self.start("")
-        return dict(self.times)
-
-
-def _virtual_baseline(depth_noise: float, fx: float) -> float:
-    if not depth_noise > 0:
-        text = f"depth_noise {depth_noise} must be positive (depth sigma = depth_noise * z^2, m)"
-        raise SlamInputError(text)
-    return 1.0 / (depth_noise * fx)
 
 
 class SlamSystem:
@@ -122,7 +97,7 @@ class SlamSystem:
             camera.cy,
             camera.width,
             camera.height,
-            _virtual_baseline(cfg.depth_noise, camera.fx),
+            virtual_baseline(cfg.depth_noise, camera.fx),
         )
         self.extractor = OrbExtractor(
             n_features=cfg.n_features,
@@ -134,6 +109,9 @@ class SlamSystem:
             max_depth=cfg.max_depth,
         )
         self.map = SlamMap()
+        self.dense = DenseTracker.from_config(self.camera, cfg) if cfg.sensor == "rgbd" else None
+        self._pose_info: FloatArray | None = None
+        self._dense_ref = -1
         self.loop_closer = LoopCloser(
             self.map,
             self.camera,
@@ -173,39 +151,6 @@ class SlamSystem:
 
     # ------------------------------------------------------------------ input
 
-    def _prepare(
-        self, image: NDArray[Any], depth: NDArray[Any] | None
-    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None, NDArray[np.float32], list[str]]:
-        cam = self.camera
-        cam.check_image(image.shape, source="image")
-        if depth is None:
-            if self._mono is None:
-                text = "depth is None: RGB-D SLAM needs a depth image per frame (or sensor 'mono')"
-                raise SlamInputError(text)
-        elif depth.shape[:2] != image.shape[:2]:
-            text = (
-                f"depth is {depth.shape[1]}x{depth.shape[0]} but the image is {image.shape[1]}x"
-                f"{image.shape[0]}: SLAM needs depth registered to the image (same size)"
-            )
-            raise SlamInputError(text)
-        if image.dtype != np.uint8:
-            text = f"image has dtype {image.dtype}: expected uint8 (mono8, rgb8 or bgr8)"
-            raise SlamInputError(text)
-        colour: NDArray[np.uint8] | None = None
-        if image.ndim == 3 and image.shape[2] in (3, 4):
-            colour = np.ascontiguousarray(image[:, :, :3])
-            gray = np.asarray(cv2.cvtColor(colour, cv2.COLOR_RGB2GRAY), dtype=np.uint8)
-        elif image.ndim == 2:
-            gray = np.ascontiguousarray(image)
-        else:
-            text = f"image has shape {image.shape}: expected (H, W) mono or (H, W, 3) colour"
-            raise SlamInputError(text)
-        if depth is None:  # monocular without depth
-            return gray, colour, np.full(gray.shape, np.nan, dtype=np.float32), []
-        depth_m = depth_to_metres(depth, depth_scale=self.config.depth_scale)
-        warnings = check_depth_scale(depth_m[::4, ::4], source="depth")
-        return gray, colour, depth_m, warnings
-
     # --------------------------------------------------------------- tracking
 
     def track(
@@ -235,11 +180,13 @@ class SlamSystem:
             SlamInputError: image or depth do not fit the camera or each other, or
                 the depth scale is implausible.
         """
-        sw = _Stopwatch()
+        sw = Stopwatch()
         sw.start("features")
-        gray, colour, depth_m, warnings = self._prepare(image, depth)
+        mono, scale = self._mono is not None, self.config.depth_scale
+        gray, colour, depth_m, warnings = prepare_inputs(
+            image, depth, self.camera, depth_scale=scale, mono=mono
+        )
         cv2.setRNGSeed(int(self.config.seed) + self.n_frames)
-        mono = self._mono is not None
         frame = self.extractor.extract(gray, None if mono else depth_m, self.camera, int(stamp_ns))
         self.n_frames += 1
         kf_added = loop = reloc = reinit = False
@@ -286,6 +233,8 @@ class SlamSystem:
             if ok:
                 self.state = "ok"
                 self._just_relocalized = reloc
+                sw.start("pose")
+                self._refine_dense(frame, depth_m)
                 if self._need_keyframe(frame, inliers):
                     sw.start("mapping")
                     loop = self._insert_keyframe(frame, depth_m, colour, sw)
@@ -421,7 +370,7 @@ class SlamSystem:
             self.map.positions[pts], frame.uv[kp], frame.u_right[kp], frame.inv_sigma2[kp]
         )
 
-    def _track_motion(self, frame: Frame, sw: _Stopwatch) -> bool:
+    def _track_motion(self, frame: Frame, sw: Stopwatch) -> bool:
         if self._last is None or self._last.t_cw is None:
             return False
         if self._odom_pred is not None:
@@ -510,7 +459,7 @@ class SlamSystem:
         self._local_kfs = local
         self._local_points = self.map.local_points(local)
 
-    def _track_local_map(self, frame: Frame, sw: _Stopwatch) -> int:
+    def _track_local_map(self, frame: Frame, sw: Stopwatch) -> int:
         assert frame.t_cw is not None
         self._update_local_map(frame)
         pts = self._local_points
@@ -539,11 +488,25 @@ class SlamSystem:
         sw.start("pose")
         kp = np.flatnonzero(frame.map_points >= 0)
         mp = frame.map_points[kp]
-        t_cw, mask = optimize_pose(cam, frame.t_cw, self._observations(frame, kp, mp))
+        obs = self._observations(frame, kp, mp)
+        t_cw, mask = optimize_pose(cam, frame.t_cw, obs)
         frame.t_cw = t_cw
+        if self.dense is not None:
+            self._pose_info = pose_information(cam, t_cw, obs, mask)
         frame.map_points[kp[~mask]] = -1
         self.map.found[mp[mask]] += 1
         return int(mask.sum())
+
+    def _refine_dense(self, frame: Frame, depth_m: NDArray[np.float32]) -> None:
+        """ICP refinement of the tracked pose on the depth (:mod:`visnav.slam.dense`)."""
+        self._dense_ref = -1
+        if self.dense is None or frame.t_cw is None:
+            return
+        ref = self._ref_kf if self.dense.has(self._ref_kf) else self.map.keyframes[-1].id
+        t_rw, prior = self.map.keyframes[ref].t_cw, self._pose_info
+        res = self.dense.refine(ref, t_rw, depth_m, frame.t_cw, prior)
+        if res.ok:
+            frame.t_cw, self._dense_ref = res.t_cw, ref
 
     # -------------------------------------------------------------- keyframes
 
@@ -573,6 +536,8 @@ class SlamSystem:
     def _store_cloud(
         self, kf: Keyframe, depth_m: NDArray[np.float32], colour: NDArray[np.uint8] | None
     ) -> None:
+        if self.dense is not None:
+            self.dense.add_keyframe(kf.id, depth_m)
         if self._mono is not None:  # monocular: no dense cloud (depth is for the scale only)
             return
         kf.cloud = depth_samples(
@@ -588,7 +553,7 @@ class SlamSystem:
         frame: Frame,
         depth_m: NDArray[np.float32],
         colour: NDArray[np.uint8] | None,
-        sw: _Stopwatch,
+        sw: Stopwatch,
     ) -> bool:
         assert frame.t_cw is not None
         cfg = self.config
@@ -674,7 +639,7 @@ class SlamSystem:
 
     def _record(self, frame: Frame) -> None:
         assert frame.t_cw is not None
-        ref = self.map.keyframes[self._ref_kf]
+        ref = self.map.keyframes[self._dense_ref if self._dense_ref >= 0 else self._ref_kf]
         rec = _FrameRecord(frame.stamp_ns, ref.id, frame.t_cw @ ref.t_wc)
         if self._last is not None and self._last.t_cw is not None and self._last_rec is not None:
             last_t_cw = self._last_rec.t_c_ref @ self.map.keyframes[self._last_rec.ref_kf].t_cw
