@@ -39,7 +39,9 @@ BUILTIN_NODES: Mapping[str, str] = {
     "move_base": "visnav.planning.nodes:NavigatorNode",
     "costmap_2d": "visnav.mapping.nodes:CostmapNode",
     "mapper": "visnav.mapping.nodes:MapperNode",
+    "map_server": "visnav.mapping.map_server_node:MapServerNode",
     "viz": "visnav.viz.node:ViewerNode",
+    "ros1_bridge": "visnav.bridge.runner:Ros1BridgeNode",
 }
 
 # Node names launch files (and the roslaunch import) may use whose class another issue

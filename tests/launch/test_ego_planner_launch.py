@@ -83,6 +83,9 @@ def test_every_parameter_of_the_launch_file_is_applied_or_named() -> None:
     assert "bspline/limit_vel, not read by ego-planner" not in text  # (wording below)
     assert "bspline/limit_vel" in text
     assert "are not read by ego-planner" in text
+    # read upstream but never used there: not parameters of visnav's planner (issue 17)
+    assert "manager/max_jerk, grid_map/depth_filter_tolerance are read by ego-planner" in text
+    assert "manager.max_jerk" not in nodes["/ego_planner_node"].params
     assert "fsm/waypoint1_x" in text
     assert "beyond fsm/waypoint_num=1" in text
     # every applied name is a parameter the built-in nodes declare

@@ -103,10 +103,13 @@ def test_cloud_in_a_camera_frame_lands_in_the_world_via_tf(ctx: Context) -> None
     assert cells[:, 0].min() >= 0.4
     assert cells[:, 0].max() <= 1.6
     assert node.grid.map.occupancy([(1.0, 3.5, 1.0)])[0] == 0  # cleared on the way
-    assert ctx.spin_until(lambda: len(occupied) > 0, timeout_s=2.0)
-    msg = occupied[-1]
-    assert msg.header.frame_id == "world"
-    assert len(cloud_to_xyz(msg)) == len(cells)
+    # the vis timer may have published the empty map before the first update arrived:
+    # wait for the publication of the final map (it comes within one vis_period)
+    assert ctx.spin_until(
+        lambda: len(occupied) > 0 and len(cloud_to_xyz(occupied[-1])) == len(cells),
+        timeout_s=2.0,
+    )
+    assert occupied[-1].header.frame_id == "world"
 
 
 def test_depth_and_odometry_are_paired_and_use_the_camera_extrinsics(ctx: Context) -> None:

@@ -31,6 +31,12 @@ from visnav.graph.names import (
     validate_topic_name,
 )
 from visnav.graph.node import Node, NodeLogger, Publisher, Subscription, Timer
+from visnav.graph.param_dataclass import (
+    ParamBinding,
+    ParameterDescriptor,
+    declare_params,
+    param,
+)
 from visnav.graph.parameters import Parameter, ParameterType, SetParametersResult
 from visnav.graph.qos import (
     DurabilityPolicy,
@@ -68,8 +74,10 @@ __all__ = [
     "Node",
     "NodeInfo",
     "NodeLogger",
+    "ParamBinding",
     "Parameter",
     "ParameterAlreadyDeclaredError",
+    "ParameterDescriptor",
     "ParameterError",
     "ParameterNotDeclaredError",
     "ParameterType",
@@ -83,6 +91,8 @@ __all__ = [
     "TopicTypeConflictError",
     "TransportError",
     "check_qos_compatibility",
+    "declare_params",
+    "param",
     "qos_profile_parameters",
     "qos_profile_sensor_data",
     "qos_profile_services_default",

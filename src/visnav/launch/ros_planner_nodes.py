@@ -24,13 +24,15 @@ roslaunch                                   visnav
 ==========================================  =================================================
 
 Upstream names that ego-planner itself never reads (``bspline/limit_*``, a leftover of
-Fast-Planner) and ``fsm/waypointN_*`` beyond ``fsm/waypoint_num`` are named in the
-import's notes; every other parameter goes to the node, which reports one it does not
-declare with the closest name it has (:mod:`visnav.launch.param_check`). Messages differ
-from upstream's: the planner sends its trajectory as ``trajectory_msgs/MultiDOFJointTrajectory``
-(not ``ego_planner/Bspline``) and traj_server its command as a one-point
-``MultiDOFJointTrajectory`` (not ``quadrotor_msgs/PositionCommand``), which is what
-visnav's simulated quadrotor follows on ``<robot_namespace>/command/trajectory``.
+Fast-Planner), those it reads but never uses (``fsm/planning_horizen_time``,
+``manager/max_jerk``, ``grid_map/depth_filter_tolerance``) and ``fsm/waypointN_*`` beyond
+``fsm/waypoint_num`` are named in the import's notes; every other parameter goes to the
+node, which reports one it does not declare with the closest name it has
+(:mod:`visnav.launch.param_check`). Messages differ from upstream's: the planner sends its
+trajectory as ``trajectory_msgs/MultiDOFJointTrajectory`` (not ``ego_planner/Bspline``) and
+traj_server its command as a one-point ``MultiDOFJointTrajectory`` (not
+``quadrotor_msgs/PositionCommand``), which is what visnav's simulated quadrotor follows on
+``<robot_namespace>/command/trajectory``.
 """
 
 from __future__ import annotations
@@ -62,6 +64,8 @@ _SERVER_TOPICS: Mapping[str, tuple[str, str]] = {
     "odom_world": ("odometry_topic", "/odom_world"),
 }
 _NOT_READ = ("bspline.",)
+# read by ego-planner but never used there, so not parameters of visnav's planner (issue 17)
+_READ_UNUSED = ("fsm.planning_horizen_time", "manager.max_jerk", "grid_map.depth_filter_tolerance")
 _WAYPOINT = re.compile(r"^fsm\.waypoint(\d+)_([xyz])$")
 _GOAL_PARAM = "_folded_goal_topic"
 
@@ -161,6 +165,15 @@ def _ego_planner_node(
         params.notes.append(
             f"{node.source}: ego_planner_node {node.fqn}: {shown} are not read by ego-planner "
             "(Fast-Planner's names); its limits are manager/max_vel and manager/max_acc"
+        )
+    unused = [k for k in _READ_UNUSED if k in private]
+    for key in unused:
+        del private[key]
+    if unused:
+        shown = ", ".join(k.replace(".", "/") for k in unused)
+        params.notes.append(
+            f"{node.source}: ego_planner_node {node.fqn}: {shown} are read by ego-planner but "
+            "never used there, so visnav's planner has no such parameters (dropped)"
         )
     order = private.pop("optimization.order", 3)
     if order != 3:

@@ -25,6 +25,8 @@ Parameters (costmap_2d's names and defaults; nav2's plugin list style)::
     inflation_layer: inflation_radius 0.55, cost_scaling_factor 10.0,
         inflate_unknown false, enabled true
 
+The parameters are the dataclasses of :mod:`visnav.mapping.costmap_layers`, and layer
+types are looked up in its registry :data:`~visnav.mapping.costmap_layers.COSTMAP_LAYERS`.
 A caller (the navigator) may pass other defaults; explicit parameter overrides win.
 Sensor topics are subscribed best-effort (``qos_profile_sensor_data``), the map
 reliable and transient local (it is latched).
@@ -33,18 +35,18 @@ reliable and transient local (it is latched).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from visnav.graph.node import Node, Publisher
+from visnav.graph.param_dataclass import declare_params
 from visnav.graph.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from visnav.mapping.costmap_2d import costmap_to_occupancy_grid
+from visnav.mapping.costmap_layers import CostmapParams, layer_defaults, make_layer
 from visnav.mapping.errors import CostmapError
 from visnav.mapping.footprint import Footprint
-from visnav.mapping.inflation_layer import InflationLayer
-from visnav.mapping.layer import Layer
 from visnav.mapping.layered_costmap import LayeredCostmap
 from visnav.mapping.observation import ObservationSource
 from visnav.mapping.obstacle_layer import ObstacleLayer
@@ -57,86 +59,12 @@ __all__ = ["MAP_QOS", "CostmapROS", "yaw_of"]
 
 MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
-_COMMON: dict[str, Any] = {
-    "global_frame": "map",
-    "robot_base_frame": "base_link",
-    "transform_tolerance": 0.3,
-    "update_frequency": 5.0,
-    "publish_frequency": 0.0,
-    "rolling_window": False,
-    "width": 10.0,
-    "height": 10.0,
-    "resolution": 0.05,
-    "origin_x": 0.0,
-    "origin_y": 0.0,
-    "track_unknown_space": False,
-    "footprint": "[]",
-    "robot_radius": 0.46,
-    "footprint_padding": 0.01,
-    "plugins": ["static_layer", "obstacle_layer", "inflation_layer"],
-}
-_STATIC: dict[str, Any] = {
-    "enabled": True,
-    "map_topic": "map",
-    "lethal_cost_threshold": 100,
-    "unknown_cost_value": -1,
-    "trinary_costmap": True,
-    "use_maximum": False,
-    "first_map_only": False,
-}
-_OBSTACLE: dict[str, Any] = {
-    "enabled": True,
-    "observation_sources": "",
-    "max_obstacle_height": 2.0,
-    "combination_method": 1,
-    "footprint_clearing_enabled": True,
-}
-_SOURCE: dict[str, Any] = {
-    "topic": "",
-    "data_type": "PointCloud2",
-    "sensor_frame": "",
-    "observation_persistence": 0.0,
-    "expected_update_rate": 0.0,
-    "min_obstacle_height": 0.0,
-    "max_obstacle_height": 2.0,
-    "obstacle_range": 2.5,
-    "raytrace_range": 3.0,
-    "inf_is_valid": False,
-    "clearing": False,
-    "marking": True,
-}
-_INFLATION: dict[str, Any] = {
-    "enabled": True,
-    "inflation_radius": 0.55,
-    "cost_scaling_factor": 10.0,
-    "inflate_unknown": False,
-}
-_PLUGIN_TYPES = {"StaticLayer": _STATIC, "ObstacleLayer": _OBSTACLE, "InflationLayer": _INFLATION}
-
 _NS = 1_000_000_000
 
 
 def yaw_of(matrix: np.ndarray) -> float:
     """Yaw of a 4x4 transform's rotation."""
     return math.atan2(float(matrix[1, 0]), float(matrix[0, 0]))
-
-
-def _plugin_type(name: str, declared: str) -> str:
-    text = declared.rsplit("::", 1)[-1].rsplit("/", 1)[-1]
-    if text in _PLUGIN_TYPES:
-        return text
-    for key, guess in (
-        ("static", "StaticLayer"),
-        ("obstacle", "ObstacleLayer"),
-        ("inflat", "InflationLayer"),
-    ):
-        if not declared and key in name:
-            return guess
-    msg = (
-        f"costmap plugin {name!r} has type {declared!r}: expected StaticLayer, ObstacleLayer or "
-        f"InflationLayer (set '{name}.plugin')"
-    )
-    raise CostmapError(msg)
 
 
 class CostmapROS:
@@ -165,30 +93,33 @@ class CostmapROS:
         self.tf = tf
         self._defaults = dict(defaults or {})
         self.pose_error = ""
-        g = self._param
-        self.global_frame = str(g("global_frame", _COMMON))
-        self.robot_base_frame = str(g("robot_base_frame", _COMMON))
-        self.transform_tolerance = float(g("transform_tolerance", _COMMON))
-        self.update_frequency = float(g("update_frequency", _COMMON))
-        self.publish_frequency = float(g("publish_frequency", _COMMON))
+        self.params = declare_params(
+            node, CostmapParams, prefix=f"{name}.", defaults=layer_defaults(self._defaults, "")
+        )
+        c = self.params
+        self.global_frame = c.global_frame
+        self.robot_base_frame = c.robot_base_frame
+        self.transform_tolerance = c.transform_tolerance
+        self.update_frequency = c.update_frequency
+        self.publish_frequency = c.publish_frequency
         footprint = Footprint.from_params(
-            footprint=g("footprint", _COMMON),
-            robot_radius=float(g("robot_radius", _COMMON)),
-            footprint_padding=float(g("footprint_padding", _COMMON)),
+            footprint=c.footprint,
+            robot_radius=c.robot_radius,
+            footprint_padding=c.footprint_padding,
         )
         self.layered = LayeredCostmap(
             self.global_frame,
-            width=float(g("width", _COMMON)),
-            height=float(g("height", _COMMON)),
-            resolution=float(g("resolution", _COMMON)),
-            origin_x=float(g("origin_x", _COMMON)),
-            origin_y=float(g("origin_y", _COMMON)),
-            rolling_window=bool(g("rolling_window", _COMMON)),
-            track_unknown_space=bool(g("track_unknown_space", _COMMON)),
+            width=c.width,
+            height=c.height,
+            resolution=c.resolution,
+            origin_x=c.origin_x,
+            origin_y=c.origin_y,
+            rolling_window=c.rolling_window,
+            track_unknown_space=c.track_unknown_space,
             footprint=footprint,
         )
-        for plugin in list(g("plugins", _COMMON)):
-            self.layered.add_layer(self._make_layer(str(plugin)))
+        for plugin in c.plugins:
+            self.layered.add_layer(make_layer(self, str(plugin), self._defaults))
         self._pub: Publisher[OccupancyGrid] | None = None
         if self.publish_frequency > 0:
             self._pub = node.create_publisher(OccupancyGrid, f"~/{name}/costmap", 1)
@@ -198,81 +129,25 @@ class CostmapROS:
             if self._pub is not None:
                 node.create_timer(1.0 / self.publish_frequency, self.publish)
 
-    # ------------------------------------------------------------------ parameters
-    def _param(self, key: str, table: Mapping[str, Any], layer: str = "") -> Any:
-        rel = f"{layer}.{key}" if layer else key
-        default = self._defaults.get(rel, table.get(key))
-        return self.node.declare_parameter(f"{self.name}.{rel}", default).value
+    # ------------------------------------------------------------------ layer wiring
+    def subscribe_map(self, layer: StaticLayer, topic: str) -> None:
+        """Feed ``layer`` from the (latched) map ``topic``; called by the layer's factory."""
+        self.node.create_subscription(
+            OccupancyGrid, topic, lambda m, la=layer: self._on_map(la, m), MAP_QOS
+        )
 
-    def _make_layer(self, plugin: str) -> Layer:
-        declared = str(
-            self.node.declare_parameter(
-                f"{self.name}.{plugin}.plugin", self._defaults.get(f"{plugin}.plugin", "")
-            ).value
-        )
-        kind = _plugin_type(plugin, declared)
-        table = _PLUGIN_TYPES[kind]
-        p = {k: self._param(k, table, plugin) for k in table}
-        if kind == "StaticLayer":
-            layer: Layer = StaticLayer(
-                plugin,
-                lethal_cost_threshold=int(p["lethal_cost_threshold"]),
-                unknown_cost_value=int(p["unknown_cost_value"]),
-                trinary_costmap=bool(p["trinary_costmap"]),
-                use_maximum=bool(p["use_maximum"]),
-                first_map_only=bool(p["first_map_only"]),
-                enabled=bool(p["enabled"]),
-            )
-            self.node.create_subscription(
-                OccupancyGrid, str(p["map_topic"]), lambda m, la=layer: self._on_map(la, m), MAP_QOS
-            )
-            return layer
-        if kind == "InflationLayer":
-            return InflationLayer(
-                plugin,
-                inflation_radius=float(p["inflation_radius"]),
-                cost_scaling_factor=float(p["cost_scaling_factor"]),
-                inflate_unknown=bool(p["inflate_unknown"]),
-                enabled=bool(p["enabled"]),
-            )
-        sources = []
-        for src in str(p["observation_sources"]).split():
-            sp = {k: self._param(k, _SOURCE, f"{plugin}.{src}") for k in _SOURCE}
-            sources.append(
-                ObservationSource(
-                    src,
-                    topic=str(sp["topic"]),
-                    data_type=str(sp["data_type"]),
-                    sensor_frame=str(sp["sensor_frame"]),
-                    observation_persistence=float(sp["observation_persistence"]),
-                    expected_update_rate=float(sp["expected_update_rate"]),
-                    min_obstacle_height=float(sp["min_obstacle_height"]),
-                    max_obstacle_height=float(sp["max_obstacle_height"]),
-                    obstacle_range=float(sp["obstacle_range"]),
-                    raytrace_range=float(sp["raytrace_range"]),
-                    inf_is_valid=bool(sp["inf_is_valid"]),
-                    clearing=bool(sp["clearing"]),
-                    marking=bool(sp["marking"]),
-                )
-            )
-        obstacle = ObstacleLayer(
-            plugin,
-            sources=sources,
-            tf=self.tf,
-            footprint_clearing_enabled=bool(p["footprint_clearing_enabled"]),
-            max_obstacle_height=float(p["max_obstacle_height"]),
-            combination_method=int(p["combination_method"]),
-            enabled=bool(p["enabled"]),
-        )
+    def subscribe_observations(
+        self, layer: ObstacleLayer, sources: Sequence[ObservationSource]
+    ) -> None:
+        """Feed ``layer`` from its sources' topics (sensor data QoS); called by its factory."""
         for s in sources:
             msg_type: type[Any] = LaserScan if s.data_type == "LaserScan" else PointCloud2
             self.node.create_subscription(
                 msg_type,
                 s.resolved_topic,
-                lambda m, la=obstacle, n=s.name: self._on_observation(la, n, m),
+                lambda m, la=layer, n=s.name: self._on_observation(la, n, m),
                 qos_profile_sensor_data,
             )
-        return obstacle
 
     # ------------------------------------------------------------------ callbacks
     def _on_map(self, layer: StaticLayer, msg: OccupancyGrid) -> None:

@@ -68,6 +68,10 @@ Vec3 = tuple[float, float, float]
 class GridMapParams:
     """Grid map parameters with ego-planner's names and defaults (``grid_map/...``).
 
+    Upstream's ``depth_filter_tolerance`` feeds a consistency check that is commented out
+    there, so it is not a parameter here (a launch file setting it gets the
+    unknown-parameter warning).
+
     Attributes:
         resolution: Voxel edge (m).
         map_size: Extent x, y, z (m); x and y centred on ``map_center``.
@@ -77,7 +81,6 @@ class GridMapParams:
         obstacles_inflation: Inflation radius (m), rounded up to whole voxels.
         local_map_margin: Voxels kept around the updated box before forgetting.
         use_depth_filter: Apply the depth filter (margin, skip, min/max distance).
-        depth_filter_tolerance: Kept for parity (upstream's consistency check is disabled).
         depth_filter_maxdist: Farthest depth taken as an obstacle (m).
         depth_filter_mindist: Nearest depth used (m).
         depth_filter_margin: Image border skipped (pixels).
@@ -103,7 +106,6 @@ class GridMapParams:
     obstacles_inflation: float = 0.099
     local_map_margin: int = 500
     use_depth_filter: bool = True
-    depth_filter_tolerance: float = 0.15
     depth_filter_maxdist: float = 5.0
     depth_filter_mindist: float = 0.2
     depth_filter_margin: int = 2

@@ -32,8 +32,10 @@ cloud already in the map frame is cast from the latest pose, as upstream does.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -41,6 +43,7 @@ import numpy as np
 from visnav import message_filters
 from visnav.errors import VisnavError
 from visnav.graph.node import Node
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.grid_map import GridMap, GridMapParams, UpdateResult
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import cloud_to_xyz, xyz_to_cloud
@@ -51,90 +54,105 @@ from visnav.tf.errors import ExtrapolationException, TransformException
 from visnav.tf.ros import TransformListener
 from visnav.tf.transforms import pose_to_matrix
 
-__all__ = ["GRID_MAP_DEFAULTS", "GridMapNode", "GridMapRos", "POSE_STAMPED", "ODOMETRY"]
+__all__ = ["GridMapNode", "GridMapRosParams", "GridMapRos", "POSE_STAMPED", "ODOMETRY"]
 
 POSE_STAMPED = 1
 ODOMETRY = 2
 
-GRID_MAP_DEFAULTS: dict[str, Any] = {
-    "resolution": 0.1,
-    "map_size_x": 40.0,
-    "map_size_y": 40.0,
-    "map_size_z": 3.0,
-    "map_center_x": 0.0,
-    "map_center_y": 0.0,
-    "ground_height": -0.01,
-    "local_update_range_x": 5.5,
-    "local_update_range_y": 5.5,
-    "local_update_range_z": 4.5,
-    "obstacles_inflation": 0.099,
-    "local_map_margin": 500,
-    "use_depth_filter": True,
-    "depth_filter_tolerance": 0.15,
-    "depth_filter_maxdist": 5.0,
-    "depth_filter_mindist": 0.2,
-    "depth_filter_margin": 2,
-    "k_depth_scaling_factor": 1000.0,
-    "skip_pixel": 2,
-    "p_hit": 0.65,
-    "p_miss": 0.35,
-    "p_min": 0.12,
-    "p_max": 0.90,
-    "p_occ": 0.80,
-    "min_ray_length": 0.1,
-    "max_ray_length": 4.5,
-    "virtual_ceil_height": 2.5,
-    "virtual_ground_height": -0.01,
-    "visualization_truncate_height": 2.4,
-    "fx": -1.0,
-    "fy": -1.0,
-    "cx": -1.0,
-    "cy": -1.0,
-    "pose_type": ODOMETRY,
-    "frame_id": "world",
-    "local_frame": "base_link",
-    "depth_topic": "depth_camera/depth/image_raw",
-    "camera_info_topic": "depth_camera/depth/camera_info",
-    "pose_topic": "camera_pose",
-    "odom_topic": "odom",
-    "cloud_topic": "",
-    "vis_period": 0.05,
-    "show_occ_time": False,
-}
+_MAP = GridMapParams()
 
 
-def params_from_values(values: Mapping[str, Any]) -> GridMapParams:
-    """:class:`GridMapParams` from ego-planner-named values (see :data:`GRID_MAP_DEFAULTS`)."""
-    v = {**GRID_MAP_DEFAULTS, **values}
+@dataclass(frozen=True, kw_only=True)
+class GridMapRosParams:
+    """The ``grid_map.*`` parameters: :class:`GridMapParams` flattened, plus inputs/outputs.
+
+    Map and fusion defaults come from :class:`GridMapParams`; the names are ego-planner's
+    (``map_size_x`` ...). See the module docs for what each does.
+    """
+
+    resolution: float = param(_MAP.resolution, description="voxel edge (m)")
+    map_size_x: float = param(_MAP.map_size[0], description="map extent x (m)")
+    map_size_y: float = param(_MAP.map_size[1], description="map extent y (m)")
+    map_size_z: float = param(_MAP.map_size[2], description="map extent z (m)")
+    map_center_x: float = param(_MAP.map_center[0], description="map centre x (m)")
+    map_center_y: float = param(_MAP.map_center[1], description="map centre y (m)")
+    ground_height: float = param(_MAP.ground_height, description="bottom of the map (m)")
+    local_update_range_x: float = param(_MAP.local_update_range[0], description="half-box x (m)")
+    local_update_range_y: float = param(_MAP.local_update_range[1], description="half-box y (m)")
+    local_update_range_z: float = param(_MAP.local_update_range[2], description="half-box z (m)")
+    obstacles_inflation: float = param(_MAP.obstacles_inflation, description="inflation (m)")
+    local_map_margin: int = param(_MAP.local_map_margin, description="voxels kept around")
+    use_depth_filter: bool = param(_MAP.use_depth_filter, description="apply the depth filter")
+    depth_filter_maxdist: float = param(_MAP.depth_filter_maxdist, description="max depth (m)")
+    depth_filter_mindist: float = param(_MAP.depth_filter_mindist, description="min depth (m)")
+    depth_filter_margin: int = param(_MAP.depth_filter_margin, description="border (pixels)")
+    k_depth_scaling_factor: float = param(
+        _MAP.k_depth_scaling_factor, description="16UC1 units per metre"
+    )
+    skip_pixel: int = param(_MAP.skip_pixel, description="depth pixel stride")
+    p_hit: float = param(_MAP.p_hit, description="hit probability", range=(0.0, 1.0))
+    p_miss: float = param(_MAP.p_miss, description="miss probability", range=(0.0, 1.0))
+    p_min: float = param(_MAP.p_min, description="lower clamp probability", range=(0.0, 1.0))
+    p_max: float = param(_MAP.p_max, description="upper clamp probability", range=(0.0, 1.0))
+    p_occ: float = param(_MAP.p_occ, description="occupied threshold", range=(0.0, 1.0))
+    min_ray_length: float = param(_MAP.min_ray_length, description="nearest point (m)")
+    max_ray_length: float = param(_MAP.max_ray_length, description="longest ray (m)")
+    virtual_ceil_height: float = param(_MAP.virtual_ceil_height, description="ceiling (m)")
+    virtual_ground_height: float = param(
+        _MAP.virtual_ground_height if _MAP.virtual_ground_height is not None else -1.0,
+        description="virtual ground (m); below the map disables it",
+    )
+    visualization_truncate_height: float = param(
+        _MAP.visualization_truncate_height, description="published cells below (m)"
+    )
+    fx: float = param(-1.0, description="focal x (px); <= 0 reads camera_info_topic")
+    fy: float = param(-1.0, description="focal y (px); <= 0 reads camera_info_topic")
+    cx: float = param(-1.0, description="centre x (px); <= 0 reads camera_info_topic")
+    cy: float = param(-1.0, description="centre y (px); <= 0 reads camera_info_topic")
+    pose_type: int = param(ODOMETRY, description="1 PoseStamped, 2 Odometry", range=(1, 2))
+    frame_id: str = param("world", description="map (global) frame")
+    local_frame: str = param("base_link", description="body frame of the pose")
+    depth_topic: str = param("depth_camera/depth/image_raw", description="depth image input")
+    camera_info_topic: str = param(
+        "depth_camera/depth/camera_info", description="camera info input"
+    )
+    pose_topic: str = param("camera_pose", description="PoseStamped input (pose_type 1)")
+    odom_topic: str = param("odom", description="Odometry input (pose_type 2)")
+    cloud_topic: str = param("", description="PointCloud2 input (empty: off)")
+    vis_period: float = param(0.05, description="occupancy publishing period (s)")
+    show_occ_time: bool = param(False, description="log fusion times")
+
+
+def params_from_values(v: GridMapRosParams) -> GridMapParams:
+    """:class:`GridMapParams` from the flat ego-planner-named parameters."""
     return GridMapParams(
-        resolution=float(v["resolution"]),
-        map_size=(float(v["map_size_x"]), float(v["map_size_y"]), float(v["map_size_z"])),
-        map_center=(float(v["map_center_x"]), float(v["map_center_y"])),
-        ground_height=float(v["ground_height"]),
+        resolution=v.resolution,
+        map_size=(v.map_size_x, v.map_size_y, v.map_size_z),
+        map_center=(v.map_center_x, v.map_center_y),
+        ground_height=v.ground_height,
         local_update_range=(
-            float(v["local_update_range_x"]),
-            float(v["local_update_range_y"]),
-            float(v["local_update_range_z"]),
+            v.local_update_range_x,
+            v.local_update_range_y,
+            v.local_update_range_z,
         ),
-        obstacles_inflation=float(v["obstacles_inflation"]),
-        local_map_margin=int(v["local_map_margin"]),
-        use_depth_filter=bool(v["use_depth_filter"]),
-        depth_filter_tolerance=float(v["depth_filter_tolerance"]),
-        depth_filter_maxdist=float(v["depth_filter_maxdist"]),
-        depth_filter_mindist=float(v["depth_filter_mindist"]),
-        depth_filter_margin=int(v["depth_filter_margin"]),
-        k_depth_scaling_factor=float(v["k_depth_scaling_factor"]),
-        skip_pixel=int(v["skip_pixel"]),
-        p_hit=float(v["p_hit"]),
-        p_miss=float(v["p_miss"]),
-        p_min=float(v["p_min"]),
-        p_max=float(v["p_max"]),
-        p_occ=float(v["p_occ"]),
-        min_ray_length=float(v["min_ray_length"]),
-        max_ray_length=float(v["max_ray_length"]),
-        virtual_ceil_height=float(v["virtual_ceil_height"]),
-        virtual_ground_height=float(v["virtual_ground_height"]),
-        visualization_truncate_height=float(v["visualization_truncate_height"]),
+        obstacles_inflation=v.obstacles_inflation,
+        local_map_margin=v.local_map_margin,
+        use_depth_filter=v.use_depth_filter,
+        depth_filter_maxdist=v.depth_filter_maxdist,
+        depth_filter_mindist=v.depth_filter_mindist,
+        depth_filter_margin=v.depth_filter_margin,
+        k_depth_scaling_factor=v.k_depth_scaling_factor,
+        skip_pixel=v.skip_pixel,
+        p_hit=v.p_hit,
+        p_miss=v.p_miss,
+        p_min=v.p_min,
+        p_max=v.p_max,
+        p_occ=v.p_occ,
+        min_ray_length=v.min_ray_length,
+        max_ray_length=v.max_ray_length,
+        virtual_ceil_height=v.virtual_ceil_height,
+        virtual_ground_height=v.virtual_ground_height,
+        visualization_truncate_height=v.visualization_truncate_height,
     )
 
 
@@ -144,7 +162,7 @@ class GridMapRos:
     Args:
         node: The node that owns the subscriptions, publishers and timer.
         prefix: Parameter prefix (``grid_map``).
-        defaults: Overrides of :data:`GRID_MAP_DEFAULTS` (before parameter overrides).
+        defaults: Defaults replacing :class:`GridMapRosParams`'s (before parameter overrides).
         tf_buffer: A TF buffer to share; None creates one with its own listener on ``node``.
 
     Attributes:
@@ -162,13 +180,10 @@ class GridMapRos:
         tf_buffer: Buffer | None = None,
     ) -> None:
         self.node = node
-        base = {**GRID_MAP_DEFAULTS, **(defaults or {})}
-        values = {
-            name: node.declare_parameter(f"{prefix}.{name}", value).value
-            for name, value in base.items()
-        }
+        self.params = declare_params(node, GridMapRosParams, prefix=f"{prefix}.", defaults=defaults)
+        values = dataclasses.asdict(self.params)
         self.values = values
-        self.map = GridMap(params_from_values(values))
+        self.map = GridMap(params_from_values(self.params))
         self.frame_id = str(values["frame_id"])
         self.local_frame = str(values["local_frame"])
         if tf_buffer is None:

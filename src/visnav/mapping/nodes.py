@@ -21,9 +21,11 @@ per distinct reason.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from visnav.graph.node import Node
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.graph.qos import qos_profile_sensor_data
 from visnav.mapping.costmap_ros import MAP_QOS, CostmapROS
 from visnav.mapping.occupancy import OccupancyMapper
@@ -33,7 +35,31 @@ from visnav.tf.buffer import Buffer
 from visnav.tf.errors import ExtrapolationException, TransformException
 from visnav.tf.ros import TransformListener
 
-__all__ = ["CostmapNode", "MapperNode"]
+__all__ = ["CostmapNode", "MapperNode", "MapperParams"]
+
+
+@dataclass(frozen=True)
+class MapperParams:
+    """The mapper's parameters (gmapping's names where it has them)."""
+
+    map_frame: str = param("map", description="frame of the map")
+    trinary: bool = param(True, description="publish free / occupied / unknown only")
+    resolution: float = param(0.05, description="cell size (m)")
+    width: float = param(20.0, description="initial width (m)")
+    height: float = param(20.0, description="initial height (m)")
+    origin_x: float = param(-10.0, description="initial origin x (m)")
+    origin_y: float = param(-10.0, description="initial origin y (m)")
+    grow: bool = param(True, description="grow the map when scans leave it")
+    grow_margin: float = param(2.0, description="margin added when growing (m)")
+    prob_hit: float = param(0.7, description="hit probability", range=(0.0, 1.0))
+    prob_miss: float = param(0.4, description="miss probability", range=(0.0, 1.0))
+    clamp_min: float = param(0.12, description="lower clamp probability", range=(0.0, 1.0))
+    clamp_max: float = param(0.97, description="upper clamp probability", range=(0.0, 1.0))
+    occupied_thresh: float = param(0.65, description="occupied from", range=(0.0, 1.0))
+    free_thresh: float = param(0.196, description="free below", range=(0.0, 1.0))
+    free_on_max_range: bool = param(True, description="max-range beams clear space")
+    max_free_range: float = param(5.0, description="longest clearing ray (m)")
+    map_update_interval: float = param(1.0, description="map publishing period (s)")
 
 
 class CostmapNode(Node):
@@ -61,27 +87,27 @@ class MapperNode(Node):
 
     def __init__(self, name: str = "mapper", **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
-        d = self.declare_parameter
-        self.map_frame = str(d("map_frame", "map").value)
-        self.trinary = bool(d("trinary", value=True).value)
+        p = self.params = declare_params(self, MapperParams)
+        self.map_frame = p.map_frame
+        self.trinary = p.trinary
         self.mapper = OccupancyMapper(
-            resolution=float(d("resolution", 0.05).value),
-            width=float(d("width", 20.0).value),
-            height=float(d("height", 20.0).value),
-            origin_x=float(d("origin_x", -10.0).value),
-            origin_y=float(d("origin_y", -10.0).value),
-            grow=bool(d("grow", value=True).value),
-            grow_margin=float(d("grow_margin", 2.0).value),
-            prob_hit=float(d("prob_hit", 0.7).value),
-            prob_miss=float(d("prob_miss", 0.4).value),
-            clamp_min=float(d("clamp_min", 0.12).value),
-            clamp_max=float(d("clamp_max", 0.97).value),
-            occupied_thresh=float(d("occupied_thresh", 0.65).value),
-            free_thresh=float(d("free_thresh", 0.196).value),
-            free_on_max_range=bool(d("free_on_max_range", value=True).value),
-            max_free_range=float(d("max_free_range", 5.0).value),
+            resolution=p.resolution,
+            width=p.width,
+            height=p.height,
+            origin_x=p.origin_x,
+            origin_y=p.origin_y,
+            grow=p.grow,
+            grow_margin=p.grow_margin,
+            prob_hit=p.prob_hit,
+            prob_miss=p.prob_miss,
+            clamp_min=p.clamp_min,
+            clamp_max=p.clamp_max,
+            occupied_thresh=p.occupied_thresh,
+            free_thresh=p.free_thresh,
+            free_on_max_range=p.free_on_max_range,
+            max_free_range=p.max_free_range,
         )
-        interval = float(d("map_update_interval", 1.0).value)
+        interval = p.map_update_interval
         self.tf_buffer = Buffer()
         self.tf_listener = TransformListener(self.tf_buffer, self)
         self._map_pub = self.create_publisher(OccupancyGrid, "map", MAP_QOS)

@@ -24,12 +24,19 @@ from typing import Any
 from visnav import message_filters
 from visnav.errors import VisnavError
 from visnav.graph.node import Node
+from visnav.graph.param_dataclass import declare_params
 from visnav.graph.qos import qos_profile_sensor_data
 from visnav.msgs.image import check_image
 from visnav.msgs.types import CameraInfo, Image, LaserScan, PointCloud2
 from visnav.perception.depth_image_proc import PointCloudXyz, PointCloudXyzrgb, convert_metric
 from visnav.perception.depth_to_scan import DepthImageToLaserScan
-from visnav.perception.image_proc import DEBAYER_VNG, Rectifier, image_color, image_mono
+from visnav.perception.image_proc import Rectifier, image_color, image_mono
+from visnav.perception.node_params import (
+    DepthImageToLaserScanParams,
+    ImageProcParams,
+    PointCloudXyzParams,
+    PointCloudXyzrgbParams,
+)
 
 __all__ = [
     "ConvertMetricNode",
@@ -67,9 +74,8 @@ class ImageProcNode(_PerceptionNode):
 
     def __init__(self, name: str = "image_proc", **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
-        self.interpolation = int(self.declare_parameter("interpolation", 1).value)
-        self.debayer = int(self.declare_parameter("debayer", DEBAYER_VNG).value)
-        queue = int(self.declare_parameter("queue_size", 5).value)
+        p = self.params = declare_params(self, ImageProcParams)
+        self.interpolation, self.debayer, queue = p.interpolation, p.debayer, p.queue_size
         self._rect = Rectifier(interpolation=self.interpolation)
         self._pubs = {
             t: self.create_publisher(Image, t, 5)
@@ -98,8 +104,8 @@ class PointCloudXyzNode(_PerceptionNode):
 
     def __init__(self, name: str = "point_cloud_xyz", **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
-        queue = int(self.declare_parameter("queue_size", 5).value)
-        invalid = float(self.declare_parameter("invalid_depth", 0.0).value)
+        p = self.params = declare_params(self, PointCloudXyzParams)
+        queue, invalid = p.queue_size, p.invalid_depth
         self._conv = PointCloudXyz(invalid_depth=invalid)
         self._pub = self.create_publisher(PointCloud2, "points", 5)
         depth = message_filters.Subscriber(self, Image, "image_rect", queue)
@@ -119,8 +125,8 @@ class PointCloudXyzrgbNode(_PerceptionNode):
 
     def __init__(self, name: str = "point_cloud_xyzrgb", **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
-        queue = int(self.declare_parameter("queue_size", 5).value)
-        exact = bool(self.declare_parameter("exact_sync", value=False).value)
+        p = self.params = declare_params(self, PointCloudXyzrgbParams)
+        queue, exact = p.queue_size, p.exact_sync
         self._conv = PointCloudXyzrgb()
         self._pub = self.create_publisher(PointCloud2, "depth_registered/points", 5)
         depth = message_filters.Subscriber(self, Image, "depth_registered/image_rect", queue)
@@ -164,12 +170,13 @@ class DepthImageToLaserScanNode(_PerceptionNode):
 
     def __init__(self, name: str = "depthimage_to_laserscan", **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
+        p = self.params = declare_params(self, DepthImageToLaserScanParams)
         self.converter = DepthImageToLaserScan(
-            scan_height=int(self.declare_parameter("scan_height", 1).value),
-            range_min=float(self.declare_parameter("range_min", 0.45).value),
-            range_max=float(self.declare_parameter("range_max", 10.0).value),
-            scan_time=float(self.declare_parameter("scan_time", 0.033).value),
-            output_frame_id=str(self.declare_parameter("output_frame", "camera_depth_frame").value),
+            scan_height=p.scan_height,
+            range_min=p.range_min,
+            range_max=p.range_max,
+            scan_time=p.scan_time,
+            output_frame_id=p.output_frame,
         )
         self._info: CameraInfo | None = None
         self._waiting = 0

@@ -3,7 +3,7 @@
 Every control cycle (``controller_frequency``, 20 Hz):
 
 1. **Samples** (``SimpleTrajectoryGenerator`` with ``use_dwa``): ``vx_samples`` x
-   ``vy_samples`` x ``vth_samples`` velocities evenly spaced in the window reachable
+   ``vth_samples`` velocities evenly spaced in the window reachable
    within one control period, ``v +- acc_lim * sim_period``, clamped to
    ``[min_vel, max_vel]`` (0 inserted between negative and positive samples, as
    ``VelocityIterator``). A sample below both ``min_vel_trans`` and ``min_vel_theta``, or
@@ -36,16 +36,16 @@ Every control cycle (``controller_frequency``, 20 Hz):
    reached when both tolerances hold and the robot is stopped
    (``trans_stopped_vel`` / ``theta_stopped_vel`` 0.1).
 
-Differences: the defaults describe a differential-drive base (``max_vel_y`` =
-``min_vel_y`` = 0 and one ``vy`` sample; dwa_local_planner's 0.1 / -0.1 / 10 describe a
-holonomic PR2); a circular robot is checked as an exact circle (centre cell
-inscribed or worse) instead of a 16-gon's outline; the stop and rotate commands are
-checked for collisions only (dwa scores them with every critic); the plan is densified
-to the costmap resolution once per cycle (``adjustPlanResolution``); a new plan to the
-same goal keeps the xy latch (dwa_local_planner resets it on every ``setPlan``, i.e. on
-every move_base replan at ``planner_frequency``: a robot that drifts a centimetre while
-turning in place at the edge of ``xy_goal_tolerance`` then drives back and turns again,
-round and round until the oscillation timeout; nav2's ``SimpleGoalChecker`` with
+Differences: a differential-drive base only (dwa_local_planner's ``max_vel_y`` /
+``min_vel_y`` / ``acc_lim_y`` / ``vy_samples``, 0.1 / -0.1 / 2.5 / 10 for a holonomic PR2,
+are not parameters here: no ``vy`` is sampled); a circular robot is checked as an exact
+circle (centre cell inscribed or worse) instead of a 16-gon's outline; the stop and rotate
+commands are checked for collisions only (dwa scores them with every critic); the plan is
+densified to the costmap resolution once per cycle (``adjustPlanResolution``); a new plan
+to the same goal keeps the xy latch (dwa_local_planner resets it on every ``setPlan``,
+i.e. on every move_base replan at ``planner_frequency``: a robot that drifts a centimetre
+while turning in place at the edge of ``xy_goal_tolerance`` then drives back and turns
+again, round and round until the oscillation timeout; nav2's ``SimpleGoalChecker`` with
 ``stateful: true`` keeps it likewise).
 """
 
@@ -79,18 +79,20 @@ __all__ = ["DWAParams", "DWAPlanner", "velocity_samples"]
 
 @dataclass(frozen=True)
 class DWAParams:
-    """dwa_local_planner parameters (its defaults, except the holonomic ``vy`` ones)."""
+    """dwa_local_planner parameters and defaults, for a differential-drive base.
+
+    The holonomic ones (``max_vel_y``, ``min_vel_y``, ``acc_lim_y``, ``vy_samples``) are
+    absent: visnav samples no ``vy``, so a launch file setting them gets the
+    unknown-parameter warning instead of a value that does nothing.
+    """
 
     max_vel_trans: float = 0.55
     min_vel_trans: float = 0.1
     max_vel_x: float = 0.55
     min_vel_x: float = 0.0
-    max_vel_y: float = 0.0
-    min_vel_y: float = 0.0
     max_vel_theta: float = 1.0
     min_vel_theta: float = 0.4
     acc_lim_x: float = 2.5
-    acc_lim_y: float = 2.5
     acc_lim_theta: float = 3.2
     xy_goal_tolerance: float = 0.1
     yaw_goal_tolerance: float = 0.1
@@ -110,7 +112,6 @@ class DWAParams:
     scaling_speed: float = 0.25
     max_scaling_factor: float = 0.2
     vx_samples: int = 3
-    vy_samples: int = 1
     vth_samples: int = 20
     use_dwa: bool = True
     prune_plan: bool = False
@@ -127,10 +128,10 @@ class DWAParams:
             if not (math.isfinite(v) and v > 0):
                 msg = f"DWA parameter {name} is {v}; expected a finite value > 0"
                 raise PlanningError(msg)
-        if self.min_vel_x > self.max_vel_x or self.min_vel_y > self.max_vel_y:
+        if self.min_vel_x > self.max_vel_x:
             msg = (
-                f"DWA velocity limits: min_vel_x {self.min_vel_x} / max_vel_x {self.max_vel_x}, "
-                f"min_vel_y {self.min_vel_y} / max_vel_y {self.max_vel_y}; expected min <= max"
+                f"DWA velocity limits: min_vel_x {self.min_vel_x} / max_vel_x {self.max_vel_x}; "
+                "expected min <= max"
             )
             raise PlanningError(msg)
 

@@ -35,7 +35,8 @@ costmap ``expected_update_rate`` 0.5 s so a stale scan stops the robot).
 The local planner is wrapped in nav2's RotationShimController (``use_rotation_shim``,
 parameters ``RotationShim.*``; see :mod:`visnav.planning.rotation_shim` for why), and
 DWA ships with ``xy_goal_tolerance`` 0.15 and ``latch_xy_goal_tolerance`` true
-(:data:`DWA_DEFAULTS`).
+(:data:`~visnav.planning.local_planners.DWA_DEFAULTS`). Local planners are
+looked up in :data:`~visnav.planning.local_planners.LOCAL_PLANNERS`.
 
 A goal whose frame has no transform to the global frame is REJECTED with the TF
 error; a failing robot pose lookup stops the robot (status text says why).
@@ -45,30 +46,37 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from visnav.graph.node import Node
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.costmap_ros import CostmapROS, yaw_of
 from visnav.msgs.construct import make
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time, time_to_ns
 from visnav.msgs.types import Header, Odometry, Path, PoseStamped, Twist, Vector3
-from visnav.planning.dwa import DWAParams, DWAPlanner
-from visnav.planning.errors import PlanningError
 from visnav.planning.global_planner import GlobalPlanner, GlobalPlannerParams, path_to_msg
 from visnav.planning.local_planner import LocalPlanner, Pose2D
+from visnav.planning.local_planners import DWA_DEFAULTS, make_local_planner
 from visnav.planning.navigator import GoalHandle, NavError, Navigator, NavigatorParams
-from visnav.planning.pure_pursuit import RegulatedPurePursuit, RPPParams
 from visnav.planning.rotation_shim import RotationShim
 from visnav.tf.buffer import Buffer
 from visnav.tf.errors import TransformException
 from visnav.tf.ros import TransformListener
 from visnav.tf.transforms import pose_to_matrix
 
-__all__ = ["DWA_DEFAULTS", "GLOBAL_COSTMAP_DEFAULTS", "LOCAL_COSTMAP_DEFAULTS", "NavigatorNode"]
+__all__ = [
+    "DWA_DEFAULTS",
+    "GLOBAL_COSTMAP_DEFAULTS",
+    "LOCAL_COSTMAP_DEFAULTS",
+    "NavigatorNode",
+    "NavigatorNodeParams",
+    "RotationShimParams",
+]
 
 GLOBAL_COSTMAP_DEFAULTS: dict[str, Any] = {
     "global_frame": "map",
@@ -97,30 +105,34 @@ LOCAL_COSTMAP_DEFAULTS: dict[str, Any] = {
     "obstacle_layer.scan.expected_update_rate": 0.5,
 }
 
-DWA_DEFAULTS: dict[str, Any] = {
-    "xy_goal_tolerance": 0.15,
-    "latch_xy_goal_tolerance": True,
-}
-"""Shipped DWA settings: dwa_local_planner's 0.1 m, unlatched, lets the robot spin in place
-just outside the tolerance (its rollouts cannot make a 1 cm step)."""
-
-_DWA_NAMES = ("dwa", "dwa_local_planner/DWAPlannerROS", "DWAPlannerROS")
-_RPP_NAMES = (
-    "rpp",
-    "pure_pursuit",
-    "nav2_regulated_pure_pursuit_controller/RegulatedPurePursuitController",
-    "nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController",
-    "RegulatedPurePursuit",
-)
 _NS = 1_000_000_000
 
 
-def _declare_dataclass(node: Node, prefix: str, cls: type[Any], **overrides: Any) -> Any:
-    values = {}
-    for f in dataclasses.fields(cls):
-        default = overrides.get(f.name, f.default)
-        values[f.name] = node.declare_parameter(f"{prefix}{f.name}", default).value
-    return cls(**values)
+@dataclass(frozen=True)
+class RotationShimParams:
+    """nav2's RotationShimController parameters (``RotationShim.*``)."""
+
+    angular_dist_threshold: float = param(0.785, description="rotate first above (rad)")
+    forward_sampling_distance: float = param(0.5, description="plan point heading from (m)")
+    rotate_to_heading_angular_vel: float = param(1.8, description="turn rate (rad/s)")
+    max_angular_accel: float = param(3.2, description="angular acceleration (rad/s^2)")
+    simulate_ahead_time: float = param(1.0, description="collision look-ahead (s)")
+
+
+@dataclass(frozen=True)
+class NavigatorNodeParams:
+    """move_base's plugin choice (the algorithms' parameters are their dataclasses)."""
+
+    base_local_planner: str = param(
+        "dwa_local_planner/DWAPlannerROS",
+        description="local planner plugin (see visnav.planning.local_planners)",
+        read_only=True,
+    )
+    use_rotation_shim: bool = param(
+        True,
+        description="wrap the local planner in nav2's RotationShimController",
+        read_only=True,
+    )
 
 
 class NavigatorNode(Node):
@@ -136,7 +148,7 @@ class NavigatorNode(Node):
         super().__init__(name, **node_kwargs)
         self.tf_buffer = Buffer()
         self.tf_listener = TransformListener(self.tf_buffer, self)
-        self.params = _declare_dataclass(self, "", NavigatorParams)
+        self.params = declare_params(self, NavigatorParams)
         self.global_costmap = CostmapROS(
             self, "global_costmap", self.tf_buffer, defaults=GLOBAL_COSTMAP_DEFAULTS
         )
@@ -144,49 +156,17 @@ class NavigatorNode(Node):
             self, "local_costmap", self.tf_buffer, defaults=LOCAL_COSTMAP_DEFAULTS
         )
         self.planner = GlobalPlanner(
-            _declare_dataclass(self, "GlobalPlanner.", GlobalPlannerParams)
+            declare_params(self, GlobalPlannerParams, prefix="GlobalPlanner.")
         )
-        kind = str(
-            self.declare_parameter("base_local_planner", "dwa_local_planner/DWAPlannerROS").value
-        )
+        choice = declare_params(self, NavigatorNodeParams)
         freq = self.params.controller_frequency
-        self.controller: LocalPlanner
-        primary: LocalPlanner
-        if kind in _DWA_NAMES:
-            primary = DWAPlanner(
-                _declare_dataclass(
-                    self, "DWAPlannerROS.", DWAParams, controller_frequency=freq, **DWA_DEFAULTS
-                )
-            )
-            self._local_plan_topic = "~/DWAPlannerROS/local_plan"
-        elif kind in _RPP_NAMES:
-            primary = RegulatedPurePursuit(
-                _declare_dataclass(
-                    self, "RegulatedPurePursuit.", RPPParams, controller_frequency=freq
-                )
-            )
-            self._local_plan_topic = "~/RegulatedPurePursuit/local_plan"
-        else:
-            msg = (
-                f"base_local_planner is {kind!r}: expected dwa_local_planner/DWAPlannerROS or "
-                "nav2_regulated_pure_pursuit_controller/RegulatedPurePursuitController"
-            )
-            raise PlanningError(msg)
-        self.controller = primary
-        if bool(self.declare_parameter("use_rotation_shim", value=True).value):
-            d = self.declare_parameter
+        built = make_local_planner(choice.base_local_planner, self, controller_frequency=freq)
+        self._local_plan_topic = built.local_plan_topic
+        self.controller: LocalPlanner = built.planner
+        if choice.use_rotation_shim:
+            shim = declare_params(self, RotationShimParams, prefix="RotationShim.")
             self.controller = RotationShim(
-                primary,
-                angular_dist_threshold=float(d("RotationShim.angular_dist_threshold", 0.785).value),
-                forward_sampling_distance=float(
-                    d("RotationShim.forward_sampling_distance", 0.5).value
-                ),
-                rotate_to_heading_angular_vel=float(
-                    d("RotationShim.rotate_to_heading_angular_vel", 1.8).value
-                ),
-                max_angular_accel=float(d("RotationShim.max_angular_accel", 3.2).value),
-                simulate_ahead_time=float(d("RotationShim.simulate_ahead_time", 1.0).value),
-                controller_frequency=freq,
+                built.planner, **dataclasses.asdict(shim), controller_frequency=freq
             )
         self.navigator = Navigator(
             self.global_costmap.layered,

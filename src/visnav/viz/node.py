@@ -10,15 +10,27 @@ for the fixed frame only by the roslaunch import).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.node import Node
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.viz.sink import RerunSink
 from visnav.viz.sources import LiveFeed
 from visnav.viz.viewer import open_viewer
 
-__all__ = ["ViewerNode"]
+__all__ = ["ViewerNode", "ViewerParams"]
+
+
+@dataclass(frozen=True)
+class ViewerParams:
+    """The viewer node's parameters."""
+
+    fixed_frame: str = param("", description="frame the scene is drawn in (empty: TF root)")
+    web: bool = param(True, description="web viewer on 127.0.0.1 (false: native viewer)")
+    save: str = param("", description="also write an .rrd recording here (empty: none)")
+    config: str = param("", description="an .rviz file (read by the roslaunch import only)")
 
 
 class ViewerNode(Node):
@@ -26,10 +38,8 @@ class ViewerNode(Node):
 
     def __init__(self, node_name: str = "viewer", **node_kwargs: Any) -> None:
         super().__init__(node_name, **node_kwargs)
-        fixed = str(self.declare_parameter("fixed_frame", "").value) or None
-        web = bool(self.declare_parameter("web", value=True).value)
-        save = str(self.declare_parameter("save", "").value) or None
-        self.declare_parameter("config", "")
+        p = self.params = declare_params(self, ViewerParams)
+        fixed, web, save = p.fixed_frame or None, p.web, p.save or None
         self.viewer = open_viewer(web=web, save=save)
         if self.viewer.url:
             self.get_logger().info(f"viewer: {self.viewer.url}")

@@ -69,12 +69,14 @@ class TargetType(enum.IntEnum):
 class FSMParams:
     """ego-planner's ``fsm/...`` parameters.
 
+    Upstream's ``fsm/planning_horizen_time`` is read there and never used, so it is not a
+    parameter here (a launch file setting it gets the unknown-parameter warning).
+
     Attributes:
         flight_type: 1 goals arrive one by one, 2 the preset ``waypoints``.
         thresh_replan: Replan once this far from the trajectory's start (m).
         thresh_no_replan: Do not replan this near the goal (m).
         planning_horizon: Distance of the local target (m).
-        planning_horizon_time: Read by upstream, not used.
         emergency_time: A collision sooner than this stops the vehicle (s).
         waypoints: Preset waypoints ``((x, y, z), ...)`` for flight type 2.
         flight_height: Height given to goals that come without one (m); upstream 1.0.
@@ -84,7 +86,6 @@ class FSMParams:
     thresh_replan: float = 1.5
     thresh_no_replan: float = 2.0
     planning_horizon: float = 7.5
-    planning_horizon_time: float = 3.0
     emergency_time: float = 1.0
     waypoints: tuple[tuple[float, float, float], ...] = ()
     flight_height: float = 1.0

@@ -64,10 +64,12 @@ class PlannerError(VisnavError, ValueError):
 class PlannerParams:
     """ego-planner's ``manager/...`` parameters.
 
+    Upstream's ``manager/max_jerk`` is read there and never used (its B-spline limits are
+    velocity and acceleration only), so it is not a parameter here.
+
     Attributes:
         max_vel: Velocity limit per axis (m/s).
         max_acc: Acceleration limit per axis (m/s^2).
-        max_jerk: Read by upstream, not used.
         control_points_distance: Spacing of the initial path's points (m).
         feasibility_tolerance: Relative excess tolerated before re-allocating time.
         planning_horizon: Length of the local plan (m).
@@ -75,7 +77,6 @@ class PlannerParams:
 
     max_vel: float = 2.0
     max_acc: float = 3.0
-    max_jerk: float = 4.0
     control_points_distance: float = 0.4
     feasibility_tolerance: float = 0.05
     planning_horizon: float = 7.5

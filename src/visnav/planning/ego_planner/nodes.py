@@ -31,12 +31,14 @@ slowed by compilation or cache loading.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from visnav.errors import VisnavError
 from visnav.graph.node import Node
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.grid_map_node import GridMapRos
 from visnav.msgs.time import ns_to_time, time_to_ns
 from visnav.msgs.types import Header, Odometry, Path, Point, Pose, PoseStamped, Quaternion
@@ -58,11 +60,72 @@ from visnav.planning.ego_planner.traj_server import TrajectoryServer
 from visnav.tf.errors import TransformException
 from visnav.tf.transforms import euler_from_quaternion, pose_to_matrix
 
-__all__ = ["EgoPlannerNode", "TrajServerNode"]
+__all__ = [
+    "EgoPlannerNode",
+    "EgoPlannerNodeParams",
+    "TrajServerNode",
+    "TrajServerParams",
+    "TrajServerTiming",
+]
 
 
-def _declare_all(node: Node, prefix: str, values: dict[str, Any]) -> dict[str, Any]:
-    return {k: node.declare_parameter(f"{prefix}.{k}", v).value for k, v in values.items()}
+@dataclass(frozen=True, kw_only=True)
+class EgoPlannerNodeParams:
+    """The top-level parameters of ``ego_planner_node`` (``fsm.*`` etc. are the algorithm's)."""
+
+    odometry_topic: str = param("odom", description="nav_msgs/Odometry input")
+    goal_topic: str = param("/move_base_simple/goal", description="PoseStamped goals ('' off)")
+    trajectory_topic: str = param("planning/trajectory", description="trajectory output")
+    path_topic: str = param("planning/path", description="nav_msgs/Path output for viewers")
+    global_frame: str = param("world", description="planning frame")
+    local_frame: str = param("base_link", description="body frame (trajectory joint name)")
+    seed: int = param(0, description="seed of the random initial paths")
+    warm_up: bool = param(True, description="compile the numba kernels at start")
+
+
+@dataclass(frozen=True)
+class _FsmWaypoints:
+    """``fsm.waypoints``: flat ``[x0, y0, z0, x1, ...]`` (FSMParams holds them as triples)."""
+
+    waypoints: list[float] = param([], description="preset waypoints for flight_type 2")  # noqa: RUF009
+
+
+@dataclass(frozen=True)
+class TrajServerParams:
+    """The parameters of ``traj_server``."""
+
+    trajectory_topic: str = param("planning/trajectory", description="trajectory input")
+    command_topic: str = param("command/trajectory", description="position command output")
+    odometry_topic: str = param("odom", description="odometry, for the initial yaw ('' off)")
+    local_frame: str = param("base_link", description="joint name of the commands")
+
+
+@dataclass(frozen=True)
+class TrajServerTiming:
+    """``traj_server.*``: sampling of the trajectory."""
+
+    time_forward: float = param(1.0, description="look-ahead (s)")
+    period: float = param(0.01, description="command period (s)", range=(1e-4, 10.0))
+
+
+_FSM_FIELDS: tuple[str, ...] = (
+    "flight_type",
+    "thresh_replan",
+    "thresh_no_replan",
+    "planning_horizon",
+    "emergency_time",
+    "flight_height",
+)
+_OPT_FIELDS: tuple[str, ...] = (
+    "lambda_smooth",
+    "lambda_collision",
+    "lambda_feasibility",
+    "lambda_fitness",
+    "dist0",
+    "max_vel",
+    "max_acc",
+)
+"""The optimizer's parameters ego-planner reads; the other fields are solver settings."""
 
 
 class EgoPlannerNode(Node):
@@ -78,114 +141,52 @@ class EgoPlannerNode(Node):
         self, name: str = "ego_planner_node", *, seed: int = 0, **node_kwargs: Any
     ) -> None:
         super().__init__(name, **node_kwargs)
-        topic = {
-            "odometry_topic": "odom",
-            "goal_topic": "/move_base_simple/goal",
-            "trajectory_topic": "planning/trajectory",
-            "path_topic": "planning/path",
-        }
-        topics = {k: str(self.declare_parameter(k, v).value) for k, v in topic.items()}
-        self.global_frame = str(self.declare_parameter("global_frame", "world").value)
-        self.local_frame = str(self.declare_parameter("local_frame", "base_link").value)
-        seed = int(self.declare_parameter("seed", seed).value)
-        do_warm_up = bool(self.declare_parameter("warm_up", value=True).value)
-        fsm = _declare_all(
-            self,
-            "fsm",
-            {
-                "flight_type": 1,
-                "thresh_replan": 1.5,
-                "thresh_no_replan": 2.0,
-                "planning_horizon": 7.5,
-                "planning_horizen_time": 3.0,
-                "emergency_time": 1.0,
-                "waypoints": [],
-                "flight_height": 1.0,
-            },
+        top = declare_params(self, EgoPlannerNodeParams, defaults={"seed": seed})
+        self.global_frame = top.global_frame
+        self.local_frame = top.local_frame
+        flat = [float(v) for v in declare_params(self, _FsmWaypoints, prefix="fsm.").waypoints]
+        if len(flat) % 3 != 0:
+            msg = (
+                f"fsm.waypoints has {len(flat)} numbers: expected [x0, y0, z0, x1, ...] "
+                "for fsm.flight_type 2"
+            )
+            raise VisnavError(msg)
+        waypoints = tuple((flat[i], flat[i + 1], flat[i + 2]) for i in range(0, len(flat), 3))
+        fsm = declare_params(
+            self, FSMParams, prefix="fsm.", names=_FSM_FIELDS, fixed={"waypoints": waypoints}
         )
-        mgr = _declare_all(
-            self,
-            "manager",
-            {
-                "max_vel": 2.0,
-                "max_acc": 3.0,
-                "max_jerk": 4.0,
-                "control_points_distance": 0.4,
-                "feasibility_tolerance": 0.05,
-                "planning_horizon": 7.5,
-            },
-        )
-        opt = _declare_all(
-            self,
-            "optimization",
-            {
-                "lambda_smooth": 1.0,
-                "lambda_collision": 0.5,
-                "lambda_feasibility": 0.1,
-                "lambda_fitness": 1.0,
-                "dist0": 0.5,
-                "max_vel": 2.0,
-                "max_acc": 3.0,
-            },
+        planner_params = declare_params(self, PlannerParams, prefix="manager.")
+        optimizer_params = declare_params(
+            self, OptimizerParams, prefix="optimization.", names=_OPT_FIELDS
         )
         self.grid = GridMapRos(
             self,
             defaults={
-                "odom_topic": topics["odometry_topic"],
+                "odom_topic": top.odometry_topic,
                 "frame_id": self.global_frame,
                 "local_frame": self.local_frame,
             },
         )
         self.tf = self.grid.tf
-        waypoints: tuple[tuple[float, float, float], ...] = ()
-        if int(fsm["flight_type"]) == 2:
-            flat = [float(v) for v in fsm["waypoints"]]
-            if len(flat) % 3 != 0 or not flat:
-                msg = (
-                    f"fsm.waypoints has {len(flat)} numbers: expected [x0, y0, z0, x1, ...] "
-                    "for fsm.flight_type 2"
-                )
-                raise VisnavError(msg)
-            waypoints = tuple((flat[i], flat[i + 1], flat[i + 2]) for i in range(0, len(flat), 3))
-        planner_params = PlannerParams(**{k: float(v) for k, v in mgr.items()})
-        if do_warm_up:
+        if top.warm_up:
             spent = warm_up(planner_params)
             self.get_logger().debug(f"ego_planner: numba kernels ready in {spent:.2f} s")
         self.manager = PlannerManager(
             self.grid.map,
             planner_params,
-            OptimizerParams(
-                lambda_smooth=float(opt["lambda_smooth"]),
-                lambda_collision=float(opt["lambda_collision"]),
-                lambda_feasibility=float(opt["lambda_feasibility"]),
-                lambda_fitness=float(opt["lambda_fitness"]),
-                dist0=float(opt["dist0"]),
-                max_vel=float(opt["max_vel"]),
-                max_acc=float(opt["max_acc"]),
-            ),
-            seed=seed,
+            optimizer_params,
+            seed=top.seed,
         )
         self.fsm = ReplanFSM(
             self.manager,
-            FSMParams(
-                flight_type=int(fsm["flight_type"]),
-                thresh_replan=float(fsm["thresh_replan"]),
-                thresh_no_replan=float(fsm["thresh_no_replan"]),
-                planning_horizon=float(fsm["planning_horizon"]),
-                planning_horizon_time=float(fsm["planning_horizen_time"]),
-                emergency_time=float(fsm["emergency_time"]),
-                waypoints=waypoints,
-                flight_height=float(fsm["flight_height"]),
-            ),
+            fsm,
             on_trajectory=self._publish_trajectory,
         )
-        self._traj_pub = self.create_publisher(
-            MultiDOFJointTrajectory, topics["trajectory_topic"], 10
-        )
-        self._path_pub = self.create_publisher(Path, topics["path_topic"], 10)
-        self.create_subscription(Odometry, topics["odometry_topic"], self._on_odom, 10)
-        if topics["goal_topic"]:
-            self.create_subscription(PoseStamped, topics["goal_topic"], self._on_goal, 10)
+        self._traj_pub = self.create_publisher(MultiDOFJointTrajectory, top.trajectory_topic, 10)
+        self._path_pub = self.create_publisher(Path, top.path_topic, 10)
+        self.create_subscription(Odometry, top.odometry_topic, self._on_odom, 10)
+        if top.goal_topic:
+            self.create_subscription(PoseStamped, top.goal_topic, self._on_goal, 10)
         self.create_timer(0.01, self._on_exec)
         self.create_timer(0.05, self._on_safety)
         self._reported: set[str] = set()
@@ -283,12 +284,11 @@ class TrajServerNode(Node):
 
     def __init__(self, name: str = "traj_server", **node_kwargs: Any) -> None:
         super().__init__(name, **node_kwargs)
-        traj_topic = str(self.declare_parameter("trajectory_topic", "planning/trajectory").value)
-        cmd_topic = str(self.declare_parameter("command_topic", "command/trajectory").value)
-        odom_topic = str(self.declare_parameter("odometry_topic", "odom").value)
-        self.joint_name = str(self.declare_parameter("local_frame", "base_link").value)
-        time_forward = float(self.declare_parameter("traj_server.time_forward", 1.0).value)
-        period = float(self.declare_parameter("traj_server.period", 0.01).value)
+        p = declare_params(self, TrajServerParams)
+        timing = declare_params(self, TrajServerTiming, prefix="traj_server.")
+        traj_topic, cmd_topic, odom_topic = p.trajectory_topic, p.command_topic, p.odometry_topic
+        self.joint_name = p.local_frame
+        time_forward, period = timing.time_forward, timing.period
         self.server = TrajectoryServer(time_forward=time_forward)
         self._pub = self.create_publisher(MultiDOFJointTrajectory, cmd_topic, 50)
         self.create_subscription(MultiDOFJointTrajectory, traj_topic, self._on_traj, 10)
