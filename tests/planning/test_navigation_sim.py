@@ -53,7 +53,11 @@ def test_car_maps_and_reaches_goals_in_the_office(mujoco_gl: str) -> None:
     truth_cm.data[:] = np.where(clearance <= RADIUS, LETHAL_OBSTACLE, 0)
     shortest = GlobalPlanner(GlobalPlannerParams(cost_factor=0.0))
     with Context(transport="local") as ctx:
-        sim = Simulator(world, [RobotSpawn(source="car", args={"camera_rate": "1"})], context=ctx)
+        sim = Simulator(
+            world,
+            [RobotSpawn(source="car", args={"camera_rate": "1", "ideal_sensors": "true"})],
+            context=ctx,
+        )
         robot_bodies = {
             mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, b)
             for b in sim.robot().handles.bodies.values()
