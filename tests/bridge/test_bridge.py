@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from visnav.bridge.bridge import BridgeOptions, Ros1Bridge, topic_selected
 from visnav.bridge.master import Ros1Master
@@ -288,3 +290,70 @@ def test_master_gone_is_logged_once_and_bridge_keeps_scanning(
     assert len(errors) == 1
     assert graphs.master.uri in errors[0]
     assert bridge.out_topics() == []
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    frame_id=st.text(max_size=9),
+    encoding=st.sampled_from(["rgb8", "mono8", "bgra8", "16UC1"]),
+    size=st.integers(0, 37),
+    remote=st.booleans(),
+)
+def test_image_bytes_sent_as_they_are_equal_the_full_conversion(
+    frame_id: str, encoding: str, size: int, remote: bool
+) -> None:
+    from visnav.bridge.bridge import _Out
+    from visnav.msgs import Header, Image
+
+    rtype = ros1_type("sensor_msgs/msg/Image")
+    assert rtype.byte_tail == "data"
+    pixels = np.arange(size, dtype=np.uint8)
+    msg = Image(
+        header=Header(stamp=ns_to_time(123_456_789), frame_id=frame_id),
+        height=1,
+        width=size,
+        encoding=encoding,
+        is_bigendian=0,
+        step=size,
+        data=pixels,
+    )
+    out = _Out("/img", rtype, latch=False)
+    head, tail = Ros1Bridge._to_ros1(out, msg, copy=not remote)
+    assert tail is not None
+    assert bytes(head) + bytes(tail) == bytes(cdr_to_ros1(serialize(msg), rtype))
+    pixels[:] = 7 if size else pixels  # a local publisher reusing its array after publish
+    assert bytes(tail) == (bytes([7] * size) if remote else bytes(range(size)))
+
+
+def test_byte_tail_types_and_fallbacks() -> None:
+    from visnav.bridge.bridge import _Out
+    from visnav.msgs import Header, MapMetaData, OccupancyGrid, Point, Pose, Quaternion
+
+    assert ros1_type("sensor_msgs/msg/CompressedImage").byte_tail == "data"
+    assert ros1_type("nav_msgs/msg/OccupancyGrid").byte_tail == "data"
+    assert ros1_type("sensor_msgs/msg/PointCloud2").byte_tail is None  # is_dense comes after
+    assert STRING.byte_tail is None
+    grid_t = ros1_type("nav_msgs/msg/OccupancyGrid")
+    grid = OccupancyGrid(
+        header=Header(stamp=ns_to_time(5), frame_id="map"),
+        info=MapMetaData(
+            map_load_time=ns_to_time(0),
+            resolution=0.05,
+            width=3,
+            height=2,
+            origin=Pose(
+                position=Point(x=1.0, y=2.0, z=0.0),
+                orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+            ),
+        ),
+        data=np.array([-1, 0, 100, 50, -1, 0], dtype=np.int8),
+    )
+    full = bytes(cdr_to_ros1(serialize(grid), grid_t))
+    head, tail = Ros1Bridge._to_ros1(_Out("/map", grid_t, latch=True), grid, copy=False)
+    assert tail is not None
+    assert bytes(head) + bytes(tail) == full
+    grid.data = np.array([-1, 5, 0, 9, 1, 2, 3, 4, 5, 6, 7, 8], dtype=np.int8)[::2]  # strided
+    full = bytes(cdr_to_ros1(serialize(grid), grid_t))
+    payload, none = Ros1Bridge._to_ros1(_Out("/map", grid_t, latch=True), grid, copy=False)
+    assert none is None
+    assert bytes(payload) == full

@@ -10,14 +10,18 @@ publishers on both sides does not loop.
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
 import functools
 import logging
+import struct
 import threading
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from visnav.bridge.errors import BridgeError, TcprosError, UnconvertibleTypeError
 from visnav.bridge.ros1_node import Ros1Node
@@ -30,6 +34,7 @@ from visnav.msgs.serde import CdrSerializer, deserialize, get_message_class
 __all__ = ["LATCHED_TOPICS", "BridgeOptions", "Ros1Bridge", "topic_selected"]
 
 _log = logging.getLogger("visnav.bridge")
+_U32 = struct.Struct("<I")
 
 LATCHED_TOPICS = frozenset({"/tf_static", "/map"})
 """Topics ROS 1 nodes expect latched, whatever the visnav publisher's durability."""
@@ -203,15 +208,42 @@ class Ros1Bridge:
                 except BridgeError as exc:
                     self.node.get_logger().error(f"/robot_description parameter not set: {exc}")
             try:
-                payload = cdr_to_ros1(memoryview(out.serializer.serialize(msg)), out.rtype)
+                payload, tail = self._to_ros1(out, msg, copy=info.from_this_process)
             except (TcprosError, MessageError) as exc:
                 self.node.get_logger().warning(f"dropped a message on {out.topic}: {exc}")
                 return
             out.count += 1
             seq = out.count if out.rtype.header_first else None  # header.seq, as rospy numbers it
-            self.ros1.publish(out.topic, payload, seq=seq)
+            self.ros1.publish(out.topic, payload, seq=seq, tail=tail)
 
         return self.node.create_subscription(cls, out.topic, forward, qos)
+
+    @staticmethod
+    def _to_ros1(out: _Out, msg: Any, *, copy: bool) -> tuple[memoryview, memoryview | None]:
+        """A message's ROS 1 bytes: ``(payload, None)``, or ``(head, bytes)`` for a byte tail.
+
+        A type whose last field is ``uint8[]`` (an image's pixels) is converted without that
+        field, and its bytes are sent from the message as they are: for a 921,600-byte image
+        this saves two copies and two passes over the pixels (CDR serialization and the
+        CDR -> ROS 1 conversion). A message from another process owns its buffer alone, so
+        the bytes are sent without a copy; one from this process is copied, because its
+        publisher may reuse the array once ``publish`` returns.
+        """
+        field = out.rtype.byte_tail
+        data = None if field is None else getattr(msg, field, None)
+        if (
+            field is None
+            or not isinstance(data, np.ndarray)
+            or data.ndim != 1
+            or data.dtype.itemsize != 1
+            or not data.flags.c_contiguous
+        ):
+            return cdr_to_ros1(memoryview(out.serializer.serialize(msg)), out.rtype), None
+        head_msg = dataclasses.replace(msg, **{field: np.empty(0, dtype=data.dtype)})
+        head = bytearray(cdr_to_ros1(memoryview(out.serializer.serialize(head_msg)), out.rtype))
+        head[-4:] = _U32.pack(data.size)  # the empty sequence's length -> the real one
+        tail = memoryview(data.tobytes()) if copy else data.data.cast("B")
+        return memoryview(head), tail
 
     def _drop_out(self, topic: str) -> None:
         out = self._out.pop(topic)

@@ -111,7 +111,9 @@ class OutConnection:
 
     A message is sent at once by the publishing thread when nothing is queued and the socket
     takes it without blocking (one thread hop less); otherwise it is queued, and its own
-    thread sends the queue in order.
+    thread sends the queue in order. When the queue is full the oldest whole message is
+    dropped; a message the socket took in part is never dropped (its rest is kept apart from
+    the queue), so the byte stream always stays in frames.
 
     Args:
         sock: the accepted socket, handshake done.
@@ -130,7 +132,8 @@ class OutConnection:
     ) -> None:
         self.sock = sock
         self.stats = stats
-        self._queue: deque[list[memoryview]] = deque(maxlen=queue_size)
+        self._queue: deque[list[memoryview]] = deque(maxlen=max(1, queue_size))
+        self._rest: list[memoryview] = []  # the unsent end of a frame already started
         self._cond = threading.Condition()
         self._closed = False
         self._busy = False
@@ -142,7 +145,7 @@ class OutConnection:
         with self._cond:
             if self._closed:
                 return
-            if self._queue or self._busy:
+            if self._queue or self._busy or self._rest:
                 if len(self._queue) == self._queue.maxlen:
                     self.stats.dropped += 1
                 self._queue.append(views)
@@ -159,7 +162,7 @@ class OutConnection:
             self._busy = False
             self.stats.bytes += sent
             if views:  # the socket is full: the rest goes first, from the sender thread
-                self._queue.appendleft(views)
+                self._rest = views
             else:
                 self.stats.messages += 1
             self._cond.notify()
@@ -169,11 +172,14 @@ class OutConnection:
         try:
             while True:
                 with self._cond:
-                    while (self._busy or not self._queue) and not self._closed:
+                    while (self._busy or not (self._rest or self._queue)) and not self._closed:
                         self._cond.wait()
                     if self._closed:
                         return
-                    views = self._queue.popleft()
+                    if self._rest:
+                        views, self._rest = self._rest, []
+                    else:
+                        views = self._queue.popleft()
                     self._busy = True
                 try:
                     self.stats.bytes += send_views(self.sock, views)

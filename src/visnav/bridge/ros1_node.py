@@ -167,19 +167,30 @@ class Ros1Node:
         with contextlib.suppress(BridgeError):
             self.master.unregister_publisher(topic, self.uri)
 
-    def publish(self, topic: str, payload: bytes | memoryview, *, seq: int | None = None) -> None:
+    def publish(
+        self,
+        topic: str,
+        payload: bytes | memoryview,
+        *,
+        seq: int | None = None,
+        tail: memoryview | None = None,
+    ) -> None:
         """Send one message (ROS 1 bytes) to every subscriber of ``topic``.
 
         Args:
             topic: the topic.
             payload: the message's ROS 1 bytes (not copied: do not change them afterwards).
             seq: when given, sent in place of the first 4 bytes (a leading Header's ``seq``).
+            tail: more bytes of the message, sent after ``payload`` without joining them (not
+                copied either).
         """
         parts: Parts = (
             (payload,)
             if seq is None
             else ((seq & 0xFFFFFFFF).to_bytes(4, "little"), memoryview(payload)[4:])
         )
+        if tail is not None:
+            parts = (*parts, tail)
         with self._lock:
             pub = self._pubs.get(topic)
             if pub is None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from rosbags.interfaces import Nodetype
 from rosbags.serde import SerdeError
@@ -49,6 +50,10 @@ class Ros1Type:
         definition: ROS 1's full message definition (TCPROS ``message_definition``).
         header_first: the first field is a ``std_msgs/Header``, so the ROS 1 bytes start with
             its ``seq`` (which publishers number, as rospy does).
+        byte_tail: the name of the last field when it is a ``uint8[]``/``int8[]`` sequence
+            (``Image.data``, ``CompressedImage.data``, ``OccupancyGrid.data``): its bytes are
+            the same on both wires, so the bridge sends them from the message as they are
+            and converts only the fields before them.
     """
 
     ros2_name: str
@@ -56,6 +61,7 @@ class Ros1Type:
     md5sum: str
     definition: str
     header_first: bool = False
+    byte_tail: str | None = None
 
 
 @functools.cache
@@ -121,7 +127,20 @@ def ros1_type(name: str) -> Ros1Type:
     definition, md5 = ros1_definition(r2)
     fields = native.fielddefs[r2][1]
     header_first = bool(fields) and fields[0][1][0] == Nodetype.NAME and fields[0][1][1] == HEADER
-    return Ros1Type(r2, ros1_name(r2), md5, definition, header_first)
+    return Ros1Type(r2, ros1_name(r2), md5, definition, header_first, _byte_tail(fields))
+
+
+def _byte_tail(fields: list[tuple[str, tuple[Any, ...]]]) -> str | None:
+    """The last field's name if it is a sequence of bytes (same bytes in CDR and ROS 1)."""
+    if not fields:
+        return None
+    name, (kind, sub) = fields[-1][0], fields[-1][1]
+    if kind != Nodetype.SEQUENCE:
+        return None
+    (elem_kind, elem), bound = sub
+    if elem_kind != Nodetype.BASE or bound != 0 or elem[0] not in ("uint8", "int8"):
+        return None
+    return str(name)
 
 
 def cdr_to_ros1(data: bytes | memoryview, rtype: Ros1Type) -> memoryview:
