@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.errors import CostmapError
@@ -27,6 +27,8 @@ from visnav.plugin_registry import UnknownPluginError, resolve_factory
 if TYPE_CHECKING:
     from visnav.mapping.costmap_ros import CostmapROS
     from visnav.mapping.layer import Layer
+
+T = TypeVar("T")
 
 __all__ = [
     "COSTMAP_LAYERS",
@@ -140,6 +142,22 @@ def layer_defaults(defaults: Mapping[str, Any], prefix: str) -> dict[str, Any]:
     return out
 
 
+def declare_layer_params(
+    costmap: CostmapROS, cls: type[T], sub: str, defaults: Mapping[str, Any]
+) -> T:
+    """Declare ``cls``'s fields under ``<costmap>.<sub>.`` with the launch defaults for ``sub``.
+
+    ``sub`` is a layer name (``obstacle_layer``) or a layer's observation source
+    (``obstacle_layer.scan``).
+    """
+    return declare_params(
+        costmap.node,
+        cls,
+        prefix=f"{costmap.name}.{sub}.",
+        defaults=layer_defaults(defaults, f"{sub}."),
+    )
+
+
 def layer_type(name: str, declared: str) -> str:
     """The registered type of layer ``name`` whose ``plugin`` parameter is ``declared``.
 
@@ -184,12 +202,7 @@ def make_static_layer(costmap: CostmapROS, name: str, defaults: Mapping[str, Any
     """StaticLayer: the map topic, translated to costs."""
     from visnav.mapping.static_layer import StaticLayer  # noqa: PLC0415 - lazy plugin
 
-    p = declare_params(
-        costmap.node,
-        StaticLayerParams,
-        prefix=f"{costmap.name}.{name}.",
-        defaults=layer_defaults(defaults, f"{name}."),
-    )
+    p = declare_layer_params(costmap, StaticLayerParams, name, defaults)
     layer = StaticLayer(
         name,
         lethal_cost_threshold=p.lethal_cost_threshold,
@@ -207,12 +220,7 @@ def make_inflation_layer(costmap: CostmapROS, name: str, defaults: Mapping[str, 
     """InflationLayer: costs decaying with the distance to lethal cells."""
     from visnav.mapping.inflation_layer import InflationLayer  # noqa: PLC0415 - lazy plugin
 
-    p = declare_params(
-        costmap.node,
-        InflationLayerParams,
-        prefix=f"{costmap.name}.{name}.",
-        defaults=layer_defaults(defaults, f"{name}."),
-    )
+    p = declare_layer_params(costmap, InflationLayerParams, name, defaults)
     return InflationLayer(
         name,
         inflation_radius=p.inflation_radius,
@@ -227,21 +235,10 @@ def make_obstacle_layer(costmap: CostmapROS, name: str, defaults: Mapping[str, A
     from visnav.mapping.observation import ObservationSource  # noqa: PLC0415 - lazy plugin
     from visnav.mapping.obstacle_layer import ObstacleLayer  # noqa: PLC0415
 
-    node = costmap.node
-    p = declare_params(
-        node,
-        ObstacleLayerParams,
-        prefix=f"{costmap.name}.{name}.",
-        defaults=layer_defaults(defaults, f"{name}."),
-    )
+    p = declare_layer_params(costmap, ObstacleLayerParams, name, defaults)
     sources = []
     for src in p.observation_sources.split():
-        sp = declare_params(
-            node,
-            ObservationSourceParams,
-            prefix=f"{costmap.name}.{name}.{src}.",
-            defaults=layer_defaults(defaults, f"{name}.{src}."),
-        )
+        sp = declare_layer_params(costmap, ObservationSourceParams, f"{name}.{src}", defaults)
         sources.append(
             ObservationSource(
                 src,
