@@ -105,13 +105,20 @@ class Ros1Env:
                 proc.wait(timeout=10)
 
 
-def wait_for(pred: Callable[[], bool], timeout_s: float, what: str) -> None:
+def wait_for(
+    pred: Callable[[], bool],
+    timeout_s: float,
+    what: str,
+    *,
+    logs: Callable[[], dict[str, str]] | None = None,
+) -> None:
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
         if pred():
             return
         time.sleep(0.2)
-    pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
+    tails = "".join(f"\n--- {n} ---\n{t}" for n, t in (logs() if logs else {}).items())
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what}{tails}")
 
 
 @pytest.fixture
@@ -130,6 +137,15 @@ def roscore(ros1: Ros1Env) -> Ros1Env:
 
 def _topics(env: Ros1Env) -> set[str]:
     return set(env.run(["rostopic", "list"]).stdout.split())
+
+
+def _hz_window(text: str) -> int:
+    """The largest sample window ``rostopic hz`` has printed (0 before its first rate).
+
+    Its window grows by the frames of one wall second per print, so a given number (50) may
+    never be printed on a slow machine: compare numbers, not text.
+    """
+    return max((int(w) for w in re.findall(r"window: (\d+)", text)), default=0)
 
 
 def _last_rate(text: str) -> float:
@@ -176,7 +192,12 @@ def test_sim_seen_by_real_ros1_tools(roscore: Ros1Env) -> None:
     # clock (bridged /clock), where the camera runs at its configured rate whatever the
     # machine's real-time factor; a frame the bridge lost would lower it.
     hz = env.start(["rostopic", "hz", "/camera/image_raw"], "rostopic_hz")
-    wait_for(lambda: "window: 50" in env.log("rostopic_hz") or hz.poll() is not None, 120, "hz")
+    wait_for(
+        lambda: _hz_window(env.log("rostopic_hz")) >= 50 or hz.poll() is not None,
+        120,
+        "hz",
+        logs=lambda: {n: env.log(n)[-1500:] for n in ("rostopic_hz", "bridge", "sim")},
+    )
     time.sleep(2.0)
     os.killpg(hz.pid, signal.SIGINT)
     hz.wait(timeout=10)
