@@ -1,8 +1,11 @@
 """Graph benchmarks (issue 2): in-process latency, cross-process throughput, topic hz accuracy.
 
-Run: ``python bench/bench_graph.py``. Prints medians of repeated runs and, for the
-cross-process case, the ratio to raw Zenoh put/subscribe of the same bytes measured
-in the same run. Each run uses its own private domain.
+Run: ``python bench/bench_graph.py`` (``--flood-only``: only the flood figure). Prints
+medians of repeated runs and, for the cross-process case, the ratio to raw Zenoh
+put/subscribe of the same bytes measured in the same run. Each run uses its own private
+domain. The flood figure: a publisher with no pause against a keep-last(2) subscription
+whose callback burns 2 ms of CPU, default subscription (the reference) against a paced one
+(``paced=True``), interleaved.
 """
 
 from __future__ import annotations
@@ -168,6 +171,86 @@ def bench_cross_process() -> dict[str, Any]:
     }
 
 
+FLOOD_CALLBACK_S = 0.002
+"""CPU time each callback of the flood benchmark's subscriber burns (a consumer slower than the flood)."""
+
+
+def _flood_sender(domain: int, seconds: float) -> None:
+    """Subprocess role: publish 921,600-byte Images with no pause for ``seconds``."""
+    from visnav.graph import Context, Node
+    from visnav.msgs import Image
+
+    with Context(domain) as ctx:
+        node = Node("flooder", context=ctx)
+        p = node.create_publisher(Image, "/flood", 2)
+        img = _image()
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            p.publish(img)
+
+
+def _flood_receive(mode: str, domain: int, seconds: float = 4.0) -> dict[str, float]:
+    """Receive a flood with a keep-last(2) subscription whose callback is slow.
+
+    Returns callbacks per second, the receiving process's CPU (cores: all its threads,
+    Zenoh's included) and that CPU less the callbacks' own work, over ``seconds`` after a
+    1 s warm-up.
+    """
+    from visnav.graph import Context, Node
+    from visnav.msgs import Image
+
+    env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
+    count = [0]
+
+    def callback(_msg: Any) -> None:
+        count[0] += 1
+        end = time.thread_time() + FLOOD_CALLBACK_S
+        while time.thread_time() < end:
+            pass
+
+    with Context(domain) as ctx:
+        node = Node("receiver", context=ctx)
+        kwargs = {"paced": True} if mode == "paced" else {}
+        node.create_subscription(Image, "/flood", callback, 2, **kwargs)
+        proc = subprocess.Popen(
+            [sys.executable, __file__, "--flood-sender", str(domain), str(seconds + 12)], env=env
+        )
+        deadline = time.monotonic() + 10
+        while count[0] == 0 and time.monotonic() < deadline:
+            ctx.spin_once(0.05)
+        warm = time.monotonic() + 1.0
+        while time.monotonic() < warm:
+            ctx.spin_once(0.05)
+        count[0] = 0
+        t0, c0 = time.monotonic(), time.process_time()
+        while time.monotonic() - t0 < seconds:
+            ctx.spin_once(0.05)
+        t1, c1 = time.monotonic(), time.process_time()
+        n = count[0]
+        proc.kill()
+        proc.wait(timeout=30)
+    cores = (c1 - c0) / (t1 - t0)
+    rate = n / (t1 - t0)
+    return {"rate": rate, "cores": cores, "overhead": cores - rate * FLOOD_CALLBACK_S}
+
+
+def bench_flood(repeats: int = 3) -> dict[str, Any]:
+    """Default vs paced keep-last subscription under a flood, interleaved repeats."""
+    base = 5_000_000 + (os.getpid() % 1000) * 100
+    runs: dict[str, list[dict[str, float]]] = {"default": [], "paced": []}
+    for r in range(repeats):
+        for k, mode in enumerate(runs):
+            try:
+                runs[mode].append(_flood_receive(mode, base + 2 * r + k))
+            except TypeError:  # a visnav without paced subscriptions (a "before" run)
+                runs[mode].append(dict.fromkeys(("rate", "cores", "overhead"), float("nan")))
+    med = statistics.median
+    return {
+        mode: {key: med(run[key] for run in rs) for key in ("rate", "cores", "overhead")}
+        for mode, rs in runs.items()
+    }
+
+
 def _hz_publisher(domain: int, seconds: float) -> None:
     from visnav.graph import Context, Node
     from visnav.msgs import String
@@ -199,12 +282,33 @@ def bench_topic_hz() -> dict[str, Any]:
     return {"measured_hz": final, "true_hz": 30.0, "error_pct": abs(final - 30.0) / 30.0 * 100}
 
 
+def _print_flood(r: dict[str, Any]) -> None:
+    d, p = r["default"], r["paced"]
+
+    def per_cb(x: dict[str, float]) -> float:
+        return x["overhead"] / x["rate"] * 1e3 if x["rate"] else float("nan")
+
+    print(
+        f"flood of 921,600-byte Images into keep-last(2) with a {FLOOD_CALLBACK_S * 1e3:.0f} ms "
+        f"callback: default {d['rate']:.0f} callbacks/s, receiver {d['cores']:.2f} cores, "
+        f"{per_cb(d):.2f} ms CPU per callback besides its own; paced {p['rate']:.0f} "
+        f"callbacks/s, {p['cores']:.2f} cores, {per_cb(p):.2f} ms; ratio paced/default: "
+        f"callbacks/s {p['rate'] / d['rate']:.2f}, CPU per callback {per_cb(p) / per_cb(d):.2f}"
+    )
+
+
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--sender":
         _sender(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]))
         return
     if len(sys.argv) > 1 and sys.argv[1] == "--hz-publisher":
         _hz_publisher(int(sys.argv[2]), float(sys.argv[3]))
+        return
+    if len(sys.argv) > 1 and sys.argv[1] == "--flood-sender":
+        _flood_sender(int(sys.argv[2]), float(sys.argv[3]))
+        return
+    if len(sys.argv) > 1 and sys.argv[1] == "--flood-only":
+        _print_flood(bench_flood())
         return
     r1 = bench_in_process()
     print(
@@ -219,6 +323,7 @@ def main() -> None:
         "[targets >= 1000 msg/s, >= 0.7x]\n"
         f"  runs: visnav {r2['runs_visnav']} zenoh {r2['runs_zenoh']} zenoh-shm {r2['runs_zenoh_shm']}"
     )
+    _print_flood(bench_flood())
     r3 = bench_topic_hz()
     print(
         f"topic hz on a 30 Hz publisher: {r3['measured_hz']:.3f} Hz, error {r3['error_pct']:.2f} %  "

@@ -12,11 +12,15 @@ python3-rospy, python3-sensor-msgs). Starts its own ``roscore -p PORT`` and VISN
   ``--duration`` seconds after a 2 s warm-up from its first message), against a rospy
   publisher sending the same images to the same kind of rospy subscriber (the reference,
   measured in the same run). Target: ratio >= 0.8. Measured twice: with both publishers
-  flooding (no sleep: a visnav publisher then offers 3,000-4,000 images/s, most of them
-  dropped by keep-last queues; a rospy one is paced by its own serialization), and with both
+  flooding (no sleep: a visnav publisher then offers 3,000-4,000 images/s, a rospy one
+  500-1,000, most of them dropped by keep-last queues), and with both
   offered the same rate (``--rate``, default 1000 Hz: more than either path carries here).
+* For each bulk run also the rate each publisher offered in the counting window (SIGUSR1
+  makes it print its count) and the CPU the processes used in it (cores: publisher, bridge,
+  rospy subscriber), and the bridge's CPU per image delivered: on a loaded machine the
+  scheduler's shares decide the rates, and these say where the CPU went.
 
-Prints medians over repeats.
+``--flood-only`` runs only the both-flooding bulk runs. Prints medians over repeats.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 WIDTH, HEIGHT = 640, 480
@@ -58,13 +63,17 @@ while t0[0] is None and time.time() < deadline:
     time.sleep(0.01)
 if t0[0] is None:
     duration = warmup = 0.0
-time.sleep(warmup + duration)
-print(json.dumps({"count": count[0], "seconds": duration, "lat_ms": lat}), flush=True)
+time.sleep(max(0.0, t0[0] + warmup - time.time()) if t0[0] else 0.0)
+print("counting", flush=True)
+cpu0 = time.process_time()
+time.sleep(duration)
+cpu = time.process_time() - cpu0
+print(json.dumps({"count": count[0], "seconds": duration, "lat_ms": lat, "cpu_s": cpu}), flush=True)
 rospy.signal_shutdown("done")
 """
 
 ROSPY_PUB = """
-import sys, time, rospy
+import signal, sys, time, rospy
 from sensor_msgs.msg import Image
 rospy.init_node("bench_pub", anonymous=True, disable_signals=True)
 pub = rospy.Publisher(sys.argv[1], Image, queue_size=2, tcp_nodelay=True)
@@ -72,16 +81,22 @@ msg = Image(height=480, width=640, encoding="rgb8", step=640 * 3, data=bytes(640
 end = time.time() + float(sys.argv[2])
 period = 1.0 / float(sys.argv[3]) if float(sys.argv[3]) > 0 else 0.0
 nxt = time.time()
-while time.time() < end:
-    msg.header.stamp = rospy.Time.from_sec(time.time())
-    pub.publish(msg)
-    if period:
-        nxt += period
-        time.sleep(max(0.0, nxt - time.time()))
+n = [0]  # SIGUSR1 prints the count and the time (the rate offered in a window)
+signal.signal(signal.SIGUSR1, lambda *_: print(n[0], time.monotonic(), flush=True))
+try:
+    while time.time() < end:
+        msg.header.stamp = rospy.Time.from_sec(time.time())
+        pub.publish(msg)
+        n[0] += 1
+        if period:
+            nxt += period
+            time.sleep(max(0.0, nxt - time.time()))
+except KeyboardInterrupt:
+    pass
 """
 
 VISNAV_PUB = """
-import sys, time
+import signal, sys, time
 import numpy as np
 from visnav.graph import Context, Node
 from visnav.msgs import Header
@@ -96,12 +111,18 @@ with Context() as ctx:
     end = time.monotonic() + duration
     period = 1.0 / rate if rate > 0 else 0.0
     nxt = time.monotonic()
-    while time.monotonic() < end:
-        msg.header.stamp = ns_to_time(time.time_ns())  # the same image, a new stamp (as rospy's)
-        pub.publish(msg)
-        if period:
-            nxt += period
-            time.sleep(max(0.0, nxt - time.monotonic()))
+    n = [0]  # SIGUSR1 prints the count and the time (the rate offered in a window)
+    signal.signal(signal.SIGUSR1, lambda *_: print(n[0], time.monotonic(), flush=True))
+    try:
+        while time.monotonic() < end:
+            msg.header.stamp = ns_to_time(time.time_ns())  # the same image, a new stamp (as rospy's)
+            pub.publish(msg)
+            n[0] += 1
+            if period:
+                nxt += period
+                time.sleep(max(0.0, nxt - time.monotonic()))
+    except KeyboardInterrupt:
+        pass
 """
 
 
@@ -113,7 +134,8 @@ def _free_port() -> int:
 
 class Procs:
     def __init__(self, env: dict[str, str], tmp: Path) -> None:
-        self.env, self.tmp, self.procs = env, tmp, []
+        self.env, self.tmp = env, tmp
+        self.procs: list[subprocess.Popen[str]] = []
 
     def start(self, argv: list[str], *, pipe: bool = False) -> subprocess.Popen[str]:
         proc = subprocess.Popen(
@@ -153,27 +175,61 @@ def _subscribe(procs: Procs, topic: str, duration: float, warmup: float) -> subp
     return sub
 
 
-def _result(sub: subprocess.Popen[str]) -> dict[str, object]:
+def _cpu_s(pid: int) -> float:
+    """CPU time (user + system) a process has used so far, in seconds."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _result(
+    procs: Procs, sub: subprocess.Popen[str], pub: subprocess.Popen[str], bridge: int | None
+) -> dict[str, Any]:
+    """The subscriber's counts, with the CPU shares (cores) of the processes in its window."""
     assert sub.stdout is not None
-    out = sub.stdout.readline()
+    assert pub.stdout is not None
+    others = {"pub": pub.pid} if bridge is None else {"pub": pub.pid, "bridge": bridge}
+    line = sub.stdout.readline().strip()
+    t0, cpu0 = time.monotonic(), {k: _cpu_s(p) for k, p in others.items()}
+    counting = line == "counting"
+    if counting:
+        pub.send_signal(signal.SIGUSR1)
+        line = sub.stdout.readline()
+        pub.send_signal(signal.SIGUSR1)
+    t1, cpu1 = time.monotonic(), {k: _cpu_s(p) for k, p in others.items()}
     sub.wait(timeout=30)
-    return json.loads(out)
-
-
-def run_visnav(procs: Procs, topic: str, rate: float, duration: float) -> dict[str, object]:
-    sub = _subscribe(procs, topic, duration, warmup=2.0)
-    pub = procs.start([sys.executable, "-c", VISNAV_PUB, topic, str(rate), str(duration + 30)])
-    res = _result(sub)
+    res: dict[str, Any] = json.loads(line)
+    res["cores"] = {k: (cpu1[k] - cpu0[k]) / (t1 - t0) for k in others}
+    res["cores"]["sub"] = res["cpu_s"] / res["seconds"] if res["seconds"] else float("nan")
+    res["offered"] = float("nan")
+    if counting:
+        try:
+            (n0, s0), (n1, s1) = (map(float, pub.stdout.readline().split()) for _ in range(2))
+            res["offered"] = (n1 - n0) / (s1 - s0)
+        except ValueError:
+            pass
     procs.stop(pub)
     return res
 
 
-def run_rospy(procs: Procs, topic: str, rate: float, duration: float) -> dict[str, object]:
+def run_visnav(
+    procs: Procs, topic: str, rate: float, duration: float, bridge: int
+) -> dict[str, Any]:
     sub = _subscribe(procs, topic, duration, warmup=2.0)
-    pub = procs.start([SYSTEM_PYTHON, "-c", ROSPY_PUB, topic, str(duration + 30), str(rate)])
-    res = _result(sub)
-    procs.stop(pub)
-    return res
+    pub = procs.start(
+        [sys.executable, "-c", VISNAV_PUB, topic, str(rate), str(duration + 30)], pipe=True
+    )
+    return _result(procs, sub, pub, bridge)
+
+
+def run_rospy(procs: Procs, topic: str, rate: float, duration: float) -> dict[str, Any]:
+    sub = _subscribe(procs, topic, duration, warmup=2.0)
+    pub = procs.start(
+        [SYSTEM_PYTHON, "-c", ROSPY_PUB, topic, str(duration + 30), str(rate)], pipe=True
+    )
+    return _result(procs, sub, pub, None)
 
 
 def _pct(values: list[float], q: float) -> float:
@@ -181,12 +237,39 @@ def _pct(values: list[float], q: float) -> float:
     return s[min(len(s) - 1, int(q * len(s)))] if s else float("nan")
 
 
+def _cores(res: dict[str, Any]) -> str:
+    cores = res["cores"]
+    parts = [f"{k} {cores[k]:.2f}" for k in ("pub", "bridge", "sub") if k in cores]
+    return f"offered {res['offered']:.0f}/s, cores: " + ", ".join(parts)
+
+
+def _bulk(procs: Procs, i: int, rate: float, args: argparse.Namespace, bridge: int) -> str:
+    """One visnav -> rospy and one rospy -> rospy bulk run; appends rates, returns the text."""
+    tag = "r" if rate else ""
+    vis = run_visnav(procs, f"/{tag}bulk{i}", rate, args.duration, bridge)
+    ref = run_rospy(procs, f"/{tag}ref{i}", rate, args.duration)
+    key = "offered" if rate else "flood"
+    args.rates[key].append((vis["count"] / args.duration, ref["count"] / args.duration))
+    per_img = vis["cores"]["bridge"] / max(vis["count"] / args.duration, 1e-9) * 1000.0
+    args.bridge_ms[key].append(per_img)
+    return (
+        f"  {'offered ' + str(int(rate)) + ' Hz' if rate else 'flooding'}: visnav->rospy "
+        f"{vis['count'] / args.duration:.1f}/s ({_cores(vis)}; bridge {per_img:.2f} ms CPU per "
+        f"image delivered), rospy->rospy {ref['count'] / args.duration:.1f}/s ({_cores(ref)})"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--duration", type=float, default=5.0)
     parser.add_argument("--rate", type=float, default=1000.0, help="offered rate of the 2nd bulk")
+    parser.add_argument(
+        "--flood-only", action="store_true", help="only the both-flooding bulk runs"
+    )
     args = parser.parse_args()
+    args.rates = {"flood": [], "offered": []}
+    args.bridge_ms = {"flood": [], "offered": []}
     print("load average (1, 5, 15 min) at the start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     tmp = Path(tempfile.mkdtemp(prefix="bench_ros1_"))
     port = _free_port()
@@ -198,55 +281,52 @@ def main() -> None:
         "VISNAV_DOMAIN": str(900_000 + os.getpid() % 50_000),
     }
     procs = Procs(env, tmp)
+    med = statistics.median
     try:
         procs.start(["roscore", "-p", str(port)])
         time.sleep(4.0)
-        procs.start([sys.executable, "-m", "visnav.cli.main", "bridge", "ros1"])
+        bridge = procs.start([sys.executable, "-m", "visnav.cli.main", "bridge", "ros1"]).pid
         time.sleep(3.0)
-        p50s, p95s, vis_rates, ros_rates, ref50s, ref95s = [], [], [], [], [], []
-        vis_r: list[float] = []
-        ros_r: list[float] = []
+        p50s, p95s, ref50s, ref95s = [], [], [], []
         for i in range(args.repeats):
-            lat = run_visnav(procs, f"/lat{i}", 30.0, args.duration)
-            lats = list(lat["lat_ms"])  # type: ignore[call-overload]
-            p50s.append(_pct(lats, 0.5))
-            p95s.append(_pct(lats, 0.95))
-            ref_lat = run_rospy(procs, f"/reflat{i}", 30.0, args.duration)
-            ref_lats = list(ref_lat["lat_ms"])  # type: ignore[call-overload]
-            ref50s.append(_pct(ref_lats, 0.5))
-            ref95s.append(_pct(ref_lats, 0.95))
-            bulk = run_visnav(procs, f"/bulk{i}", 0.0, args.duration)
-            ref = run_rospy(procs, f"/ref{i}", 0.0, args.duration)
-            vis_rates.append(int(bulk["count"]) / args.duration)  # type: ignore[call-overload]
-            ros_rates.append(int(ref["count"]) / args.duration)  # type: ignore[call-overload]
-            bulk = run_visnav(procs, f"/rbulk{i}", args.rate, args.duration)
-            ref = run_rospy(procs, f"/rref{i}", args.rate, args.duration)
-            vis_r.append(int(bulk["count"]) / args.duration)  # type: ignore[call-overload]
-            ros_r.append(int(ref["count"]) / args.duration)  # type: ignore[call-overload]
+            lines = [f"run {i}:"]
+            if not args.flood_only:
+                lat = run_visnav(procs, f"/lat{i}", 30.0, args.duration, bridge)
+                lats = list(lat["lat_ms"])
+                p50s.append(_pct(lats, 0.5))
+                p95s.append(_pct(lats, 0.95))
+                ref_lat = run_rospy(procs, f"/reflat{i}", 30.0, args.duration)
+                ref_lats = list(ref_lat["lat_ms"])
+                ref50s.append(_pct(ref_lats, 0.5))
+                ref95s.append(_pct(ref_lats, 0.95))
+                lines.append(
+                    f"  latency p50 {p50s[-1]:.2f} ms p95 {p95s[-1]:.2f} ms ({len(lats)} msgs at "
+                    f"30 Hz; rospy->rospy p50 {ref50s[-1]:.2f} p95 {ref95s[-1]:.2f} ms)"
+                )
+            lines.append(_bulk(procs, i, 0.0, args, bridge))
+            if not args.flood_only:
+                lines.append(_bulk(procs, i, args.rate, args, bridge))
+            print("\n".join(lines), flush=True)
+        if p50s:
             print(
-                f"run {i}: latency p50 {p50s[-1]:.2f} ms p95 {p95s[-1]:.2f} ms "
-                f"({len(lats)} msgs at 30 Hz; rospy->rospy p50 {ref50s[-1]:.2f} p95 "
-                f"{ref95s[-1]:.2f} ms); bulk visnav->rospy {vis_rates[-1]:.1f}/s, "
-                f"rospy->rospy {ros_rates[-1]:.1f}/s; offered {args.rate:.0f} Hz: visnav->rospy "
-                f"{vis_r[-1]:.1f}/s, rospy->rospy {ros_r[-1]:.1f}/s",
-                flush=True,
+                f"median over {args.repeats}: 640x480 rgb8 visnav -> rospy at 30 Hz: latency p50 "
+                f"{med(p50s):.2f} ms, p95 {med(p95s):.2f} ms (target <= 10 ms); rospy -> rospy "
+                f"in the same run: p50 {med(ref50s):.2f} ms, p95 {med(ref95s):.2f} ms"
             )
-        med = statistics.median
-        print(
-            f"median over {args.repeats}: 640x480 rgb8 visnav -> rospy at 30 Hz: latency p50 "
-            f"{med(p50s):.2f} ms, p95 {med(p95s):.2f} ms (target <= 10 ms); rospy -> rospy "
-            f"in the same run: p50 {med(ref50s):.2f} ms, p95 {med(ref95s):.2f} ms"
-        )
-        ratio = med(vis_rates) / med(ros_rates)
-        print(
-            f"bulk, both flooding: visnav -> rospy {med(vis_rates):.1f} img/s, rospy -> rospy "
-            f"{med(ros_rates):.1f} img/s, ratio {ratio:.2f} (target >= 0.8)"
-        )
-        print(
-            f"bulk, both offered {args.rate:.0f} Hz: visnav -> rospy {med(vis_r):.1f} img/s, "
-            f"rospy -> rospy {med(ros_r):.1f} img/s, ratio {med(vis_r) / med(ros_r):.2f} "
-            "(target >= 0.8)"
-        )
+        for key, what in (
+            ("flood", "both flooding"),
+            ("offered", f"both offered {args.rate:.0f} Hz"),
+        ):
+            pairs = args.rates[key]
+            if not pairs:
+                continue
+            vis, ref = med(p[0] for p in pairs), med(p[1] for p in pairs)
+            ratios = ", ".join(f"{p[0] / p[1]:.2f}" if p[1] else "nan" for p in pairs)
+            print(
+                f"bulk, {what}: visnav -> rospy {vis:.1f} img/s, rospy -> rospy {ref:.1f} img/s, "
+                f"ratio of medians {vis / ref:.2f} (per run {ratios}; target >= 0.8); bridge "
+                f"CPU per image delivered {med(args.bridge_ms[key]):.2f} ms (median)"
+            )
         print(
             "load average (1, 5, 15 min) at the end: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
         )

@@ -357,3 +357,84 @@ def test_byte_tail_types_and_fallbacks() -> None:
     payload, none = Ros1Bridge._to_ros1(_Out("/map", grid_t, latch=True), grid, copy=False)
     assert none is None
     assert bytes(payload) == full
+
+
+def test_flood_from_another_process_is_paced_by_the_ros1_subscriber(
+    domain: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A visnav publisher floods images: the bridge converts about what ROS 1 takes."""
+    from visnav.msgs import Header, Image
+
+    image = ros1_type("sensor_msgs/msg/Image")
+    master = Ros1Master(0)
+    master.start()
+    ros1 = Ros1Node("visnav_bridge", master_uri=master.uri, host="127.0.0.1")
+    ros1.start()
+    peer = Ros1Node("peer", master_uri=master.uri, host="127.0.0.1")
+    peer.start()
+    converted: list[int] = []
+    real_convert = Ros1Bridge._convert
+
+    def counting_convert(self: Ros1Bridge, out: Any, data: Any) -> Any:
+        converted.append(1)
+        return real_convert(self, out, data)
+
+    monkeypatch.setattr(Ros1Bridge, "_convert", counting_convert)
+    with Context(domain) as bctx, Context(domain) as pctx:
+        bridge = Ros1Bridge(
+            Node("ros1_bridge", context=bctx), ros1, BridgeOptions(scan_period_s=0.05)
+        )
+        pub = Node("camera", context=pctx).create_publisher(Image, "/img", 2)
+        got: list[int] = []
+
+        def slow_reader(raw: bytearray) -> None:
+            msg = deserialize(ros1_to_cdr(raw, image), image.ros2_name)
+            got.append(int(msg.header.stamp.nanosec))
+            time.sleep(0.02)  # a ROS 1 subscriber that takes 50 images/s
+
+        peer.subscribe("/img", image, slow_reader)
+        sent = [0]
+        frames = [np.full(640 * 480 * 3, v, np.uint8) for v in (0, 1)]
+
+        def publish() -> None:
+            sent[0] += 1
+            pub.publish(
+                Image(
+                    header=Header(stamp=ns_to_time(sent[0]), frame_id="cam"),
+                    height=480,
+                    width=640,
+                    encoding="rgb8",
+                    is_bigendian=0,
+                    step=640 * 3,
+                    data=frames[sent[0] % 2],
+                )
+            )
+
+        def flowing() -> bool:
+            publish()
+            return len(got) >= 3
+
+        assert bctx.spin_until(flowing, 15.0)
+        before_sent, before_got, before_conv = sent[0], len(got), len(converted)
+        deadline = time.monotonic() + 1.5
+        while time.monotonic() < deadline:  # flood: many times what the reader takes
+            publish()
+            bctx.spin_some()
+        bctx.spin(duration_s=0.5)
+        flood, taken, conv = (
+            sent[0] - before_sent,
+            len(got) - before_got,
+            len(converted) - before_conv,
+        )
+        sub = bridge._out["/img"].sub
+        assert sub is not None
+        assert sub.paced
+        assert flood > 5 * taken  # it was a flood
+        # converted: what was sent (the reader's, and what fits in the sockets' buffers)
+        assert conv <= taken + 20
+        assert sub.dropped > flood // 2  # dropped inside Zenoh, counted from the sequence
+        assert got == sorted(got)
+        bridge.close()
+    peer.close()
+    ros1.close()
+    master.close()

@@ -26,7 +26,15 @@ import numpy as np
 from visnav.bridge.errors import BridgeError, TcprosError, UnconvertibleTypeError
 from visnav.bridge.ros1_node import Ros1Node
 from visnav.bridge.typemap import Ros1Type, cdr_to_ros1, ros1_to_cdr, ros1_type
-from visnav.graph import DurabilityPolicy, MessageInfo, Node, Publisher, QoSProfile, Subscription
+from visnav.graph import (
+    DurabilityPolicy,
+    MessageInfo,
+    Node,
+    Publisher,
+    QoSProfile,
+    SerializedMessage,
+    Subscription,
+)
 from visnav.graph.names import is_hidden_name
 from visnav.msgs.errors import MessageError
 from visnav.msgs.serde import CdrSerializer, deserialize, get_message_class
@@ -72,6 +80,7 @@ class _Out:
         self.rtype = rtype
         self.latch = latch
         self.serializer = CdrSerializer(rtype.ros2_name)
+        self.convert_lock = threading.Lock()  # conversions may run on connection threads
         self.sub: Subscription[Any] | None = None
         self.count = 0
 
@@ -106,6 +115,7 @@ class Ros1Bridge:
         self._in: dict[str, _In] = {}
         self._refused: set[tuple[str, str]] = set()
         self._own_pub_ids: set[int] = set()
+        ros1.on_room = self._on_room
         self._sim_time_set = False
         self._description: str | None = None
         self._last_error = ""
@@ -197,6 +207,8 @@ class Ros1Bridge:
         cls = get_message_class(out.rtype.ros2_name)
         durability = DurabilityPolicy.TRANSIENT_LOCAL if out.latch else DurabilityPolicy.VOLATILE
         qos = QoSProfile(depth=self.options.queue_size, durability=durability)
+        if out.rtype.byte_tail is not None and not out.latch:
+            return self._subscribe_visnav_raw(out, cls, qos)
 
         def forward(msg: Any, info: MessageInfo) -> None:
             if info.from_this_process and info.publisher_entity_id in self._own_pub_ids:
@@ -217,6 +229,54 @@ class Ros1Bridge:
             self.ros1.publish(out.topic, payload, seq=seq, tail=tail)
 
         return self.node.create_subscription(cls, out.topic, forward, qos)
+
+    def _subscribe_visnav_raw(
+        self, out: _Out, cls: type[Any], qos: QoSProfile
+    ) -> Subscription[Any]:
+        """Forward a bulk type (images, clouds) undecoded, paced by the ROS 1 subscribers.
+
+        The subscription hands over the CDR bytes still in the transport's buffer; each ROS 1
+        connection queues the message as it is and the conversion (and the one copy out of
+        the transport) runs when a connection sends it. The subscription is paced: while
+        every connection has messages queued behind the one it sends
+        (:data:`~visnav.bridge.ros1_node.PACE_AHEAD`), it is paused and the
+        newest messages wait in Zenoh (older ones dropped there, costing no Python code), so
+        a visnav publisher flooding thousands of images a second costs the bridge about what
+        the ROS 1 subscribers take.
+        """
+
+        def forward(data: SerializedMessage, info: MessageInfo) -> None:
+            if info.from_this_process and info.publisher_entity_id in self._own_pub_ids:
+                return  # came from ROS 1 through this bridge
+            out.count += 1
+            seq = out.count if out.rtype.header_first else None  # header.seq, as rospy numbers it
+            make = functools.partial(self._convert, out, data)
+            sub = out.sub
+            if not self.ros1.publish_deferred(out.topic, make, seq=seq) and sub is not None:
+                sub.pause()
+                if self.ros1.wants_more(out.topic):  # a queue emptied before the pause
+                    sub.resume()
+
+        return self.node.create_subscription(cls, out.topic, forward, qos, raw=True, paced=True)
+
+    def _on_room(self, topic: str) -> None:
+        """A ROS 1 subscriber of ``topic`` can take more (runs on a connection's thread)."""
+        out = self._out.get(topic)
+        sub = None if out is None else out.sub
+        if sub is not None and sub.paced and sub.paused:
+            sub.resume()
+
+    def _convert(
+        self, out: _Out, data: SerializedMessage
+    ) -> tuple[memoryview, memoryview | None] | None:
+        """A raw message's ROS 1 bytes (see :meth:`_to_ros1`), or None if it does not convert."""
+        try:
+            msg = data.deserialize()  # its own buffer: its bytes are sent without a copy
+            with out.convert_lock:
+                return self._to_ros1(out, msg, copy=False)
+        except (TcprosError, MessageError) as exc:
+            self.node.get_logger().warning(f"dropped a message on {out.topic}: {exc}")
+            return None
 
     @staticmethod
     def _to_ros1(out: _Out, msg: Any, *, copy: bool) -> tuple[memoryview, memoryview | None]:

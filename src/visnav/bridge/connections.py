@@ -3,6 +3,10 @@
 Each connection has its own thread, so a slow or broken peer holds up nobody else. An outgoing
 connection keeps a small queue and drops the oldest message when the peer cannot keep up
 (roscpp's ``queue_size``); an incoming one hands every message to a callback.
+
+A queued message may be a :class:`LazyParts`: its bytes are made (converted, copied out of
+the visnav transport) only when a connection is about to send it, once for all connections,
+so messages the queues drop while a publisher floods cost no conversion.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ __all__ = [
     "framed",
     "send_views",
     "InConnection",
+    "LazyParts",
     "OutConnection",
     "Parts",
     "md5_mismatch",
@@ -67,6 +72,32 @@ def md5_mismatch(topic: str, ours: Ros1Type, their_type: str, their_md5: str, pe
 
 Parts = tuple[bytes | memoryview, ...]
 """One message as buffers sent back to back (no copy to join them)."""
+
+
+class LazyParts:
+    """One message's :data:`Parts`, made on first use and shared by every connection.
+
+    Args:
+        make: returns the parts, or None when the message cannot be converted (it is then
+            skipped; ``make`` logs why). Called once, by the first connection that sends.
+    """
+
+    __slots__ = ("_lock", "_made", "_make", "_parts")
+
+    def __init__(self, make: Callable[[], Parts | None]) -> None:
+        self._make: Callable[[], Parts | None] | None = make
+        self._parts: Parts | None = None
+        self._made = False
+        self._lock = threading.Lock()
+
+    def get(self) -> Parts | None:
+        """The parts (made now if no connection needed them before)."""
+        with self._lock:
+            if not self._made:
+                make, self._make = self._make, None
+                self._parts = make() if make is not None else None
+                self._made = True
+            return self._parts
 
 
 def framed(parts: Parts) -> list[memoryview]:
@@ -120,6 +151,9 @@ class OutConnection:
         stats: its statistics entry.
         queue_size: messages kept while the peer is slow (oldest dropped).
         on_close: called once when the connection ends.
+        on_room: called (on the connection's thread) each time a message leaves the queue
+            to be sent: a publisher that holds messages back while every queue has some
+            (:meth:`queued`) can send more.
     """
 
     def __init__(
@@ -129,29 +163,47 @@ class OutConnection:
         *,
         queue_size: int = 10,
         on_close: Callable[[OutConnection], None],
+        on_room: Callable[[], None] | None = None,
     ) -> None:
         self.sock = sock
         self.stats = stats
-        self._queue: deque[list[memoryview]] = deque(maxlen=max(1, queue_size))
+        self._queue: deque[list[memoryview] | LazyParts] = deque(maxlen=max(1, queue_size))
         self._rest: list[memoryview] = []  # the unsent end of a frame already started
         self._cond = threading.Condition()
         self._closed = False
         self._busy = False
         self._on_close = on_close
+        self._on_room = on_room
 
-    def push(self, payload: Parts) -> None:
-        """Send or queue one message (ROS 1 bytes, in parts)."""
-        views = framed(payload)
+    def queued(self) -> int:
+        """Messages waiting behind the one being sent."""
+        return len(self._queue)
+
+    def push(self, payload: Parts | LazyParts) -> None:
+        """Send or queue one message (ROS 1 bytes in parts, or parts made when sent)."""
+        item: list[memoryview] | LazyParts = (
+            payload if isinstance(payload, LazyParts) else framed(payload)
+        )
         with self._cond:
             if self._closed:
                 return
             if self._queue or self._busy or self._rest:
                 if len(self._queue) == self._queue.maxlen:
                     self.stats.dropped += 1
-                self._queue.append(views)
+                self._queue.append(item)
                 self._cond.notify()
                 return
             self._busy = True
+        if isinstance(item, LazyParts):
+            parts = item.get()  # sent at once: the socket is idle
+            views = [] if parts is None else framed(parts)
+        else:
+            views = item
+        if not views:
+            with self._cond:
+                self._busy = False
+                self._cond.notify()
+            return
         try:
             sent = send_views(self.sock, views, wait=False)
         except OSError:
@@ -176,17 +228,29 @@ class OutConnection:
                         self._cond.wait()
                     if self._closed:
                         return
+                    item: list[memoryview] | LazyParts
+                    room = False
                     if self._rest:
-                        views, self._rest = self._rest, []
+                        item, self._rest = self._rest, []
                     else:
-                        views = self._queue.popleft()
+                        item = self._queue.popleft()
+                        room = True
                     self._busy = True
+                if room and self._on_room is not None:
+                    self._on_room()
                 try:
-                    self.stats.bytes += send_views(self.sock, views)
+                    if isinstance(item, LazyParts):
+                        parts = item.get()
+                        views = [] if parts is None else framed(parts)
+                    else:
+                        views = item
+                    sent = send_views(self.sock, views) if views else 0
+                    self.stats.bytes += sent
                 finally:
                     with self._cond:
                         self._busy = False
-                self.stats.messages += 1
+                if sent:
+                    self.stats.messages += 1
         except OSError as exc:
             if not self._closed:
                 _log.info(

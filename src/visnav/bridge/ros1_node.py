@@ -8,6 +8,7 @@ The slave API answers what ``rosnode`` and other nodes call: ``getBusInfo``, ``g
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import logging
 import os
@@ -22,6 +23,7 @@ from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 from visnav.bridge.connections import (
     ConnectionStats,
     InConnection,
+    LazyParts,
     OutConnection,
     Parts,
     md5_mismatch,
@@ -31,9 +33,32 @@ from visnav.bridge.master_api import MasterClient, bind_address
 from visnav.bridge.tcpros import encode_header, read_header
 from visnav.bridge.typemap import Ros1Type, rosout_type
 
-__all__ = ["Ros1Node", "ThreadingXmlRpcServer"]
+__all__ = ["PACE_AHEAD", "Ros1Node", "ThreadingXmlRpcServer", "message_parts"]
 
 _log = logging.getLogger("visnav.bridge")
+
+PACE_AHEAD = 6
+"""Messages queued behind the one being sent before :meth:`Ros1Node.wants_more` says no (of the
+10 a connection keeps): enough that a connection never waits for the next message to be taken
+from the visnav graph and keeps the socket full. With 2, a flooded rospy subscriber got its
+frames one by one and deserialized each (rospy skips all but the newest ``queue_size`` of a
+batch it reads at once): 286 against 363 images per CPU-second of the subscriber
+(``bench/bench_ros1.py --flood-only``, 15 and 6 runs on a loaded machine)."""
+
+
+def message_parts(
+    payload: bytes | memoryview, *, seq: int | None = None, tail: memoryview | None = None
+) -> Parts:
+    """One message's buffers: ``payload`` (first 4 bytes replaced by ``seq`` if given), ``tail``.
+
+    Nothing is copied.
+    """
+    parts: Parts = (
+        (payload,)
+        if seq is None
+        else ((seq & 0xFFFFFFFF).to_bytes(4, "little"), memoryview(payload)[4:])
+    )
+    return parts if tail is None else (*parts, tail)
 
 
 class _QuietHandler(SimpleXMLRPCRequestHandler):
@@ -78,6 +103,10 @@ class Ros1Node:
         host: the address peers use to reach this node.
         on_shutdown: called when a peer calls ``shutdown`` (``rosnode kill``).
         on_demand: called with a topic when its number of ROS 1 subscribers changes.
+
+    Attributes:
+        on_room: called with a topic (on a connection's thread) when a message of it leaves a
+            subscriber's queue to be sent, or a subscriber comes or goes: see :meth:`wants_more`.
     """
 
     def __init__(
@@ -94,6 +123,7 @@ class Ros1Node:
         self.master = MasterClient(master_uri, self.name)
         self._on_shutdown = on_shutdown
         self._on_demand = on_demand
+        self.on_room: Callable[[str], None] | None = None
         self._lock = threading.RLock()
         self._pubs: dict[str, _Publication] = {}
         self._subs: dict[str, _Subscription] = {}
@@ -184,13 +214,7 @@ class Ros1Node:
             tail: more bytes of the message, sent after ``payload`` without joining them (not
                 copied either).
         """
-        parts: Parts = (
-            (payload,)
-            if seq is None
-            else ((seq & 0xFFFFFFFF).to_bytes(4, "little"), memoryview(payload)[4:])
-        )
-        if tail is not None:
-            parts = (*parts, tail)
+        parts = message_parts(payload, seq=seq, tail=tail)
         with self._lock:
             pub = self._pubs.get(topic)
             if pub is None:
@@ -201,6 +225,63 @@ class Ros1Node:
             conns = list(pub.conns)
         for conn in conns:
             conn.push(parts)
+
+    def publish_deferred(
+        self,
+        topic: str,
+        make: Callable[[], tuple[bytes | memoryview, memoryview | None] | None],
+        *,
+        seq: int | None = None,
+    ) -> bool:
+        """Like :meth:`publish`, but the bytes are made only when a connection sends them.
+
+        ``make()`` returns ``(payload, tail)`` as :meth:`publish` takes them, or None when the
+        message cannot be converted (it logs why); it runs at most once, on whichever thread
+        first sends the message (a connection's thread, or this one when a socket is idle).
+        Messages that every subscriber's queue drops before sending are never made.
+
+        Returns:
+            :meth:`wants_more` after queueing the message.
+        """
+
+        def parts() -> Parts | None:
+            made = make()
+            return None if made is None else message_parts(made[0], seq=seq, tail=made[1])
+
+        lazy = LazyParts(parts)
+        with self._lock:
+            pub = self._pubs.get(topic)
+            if pub is None:
+                return True
+            pub.messages += 1
+            latch = pub.latch
+            conns = list(pub.conns)
+        if latch:  # kept for later subscribers: made now
+            made = lazy.get()
+            with self._lock:
+                if made is not None:
+                    pub.last = made
+        for conn in conns:
+            conn.push(lazy)
+        return not conns or any(c.queued() < PACE_AHEAD for c in conns)
+
+    def wants_more(self, topic: str) -> bool:
+        """Whether a subscriber of ``topic`` has fewer than :data:`PACE_AHEAD` messages queued.
+
+        True also when there is none.
+
+        A sender that stops while this is False must not wait past the next :attr:`on_room`
+        call for ``topic``: check again after stopping.
+        """
+        with self._lock:
+            pub = self._pubs.get(topic)
+            conns = [] if pub is None else list(pub.conns)
+        return not conns or any(c.queued() < PACE_AHEAD for c in conns)
+
+    def _room(self, topic: str) -> None:
+        on_room = self.on_room
+        if on_room is not None and not self._closed:
+            on_room(topic)
 
     def subscriber_count(self, topic: str) -> int:
         """Number of ROS 1 subscribers connected to our publication of ``topic``."""
@@ -345,13 +426,16 @@ class Ros1Node:
             sock.close()
             return
         stats = ConnectionStats(next(self._ids), peer, "o", topic, addr)
-        conn = OutConnection(sock, stats, on_close=self._out_closed)
+        conn = OutConnection(
+            sock, stats, on_close=self._out_closed, on_room=functools.partial(self._room, topic)
+        )
         with self._lock:
             pub.conns.append(conn)
             if pub.last is not None:
                 conn.push(pub.last)
         if self._on_demand is not None:
             self._on_demand(topic)
+        self._room(topic)
         conn.run()
 
     def _out_closed(self, conn: OutConnection) -> None:
@@ -361,6 +445,7 @@ class Ros1Node:
                 pub.conns.remove(conn)
         if self._on_demand is not None and not self._closed:
             self._on_demand(conn.stats.topic)
+        self._room(conn.stats.topic)
 
     # ------------------------------------------------------------------ slave API
     def _all_stats(self) -> list[ConnectionStats]:

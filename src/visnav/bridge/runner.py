@@ -10,13 +10,16 @@ import logging
 import os
 import threading
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from visnav.bridge.bridge import BridgeOptions, Ros1Bridge
 from visnav.bridge.master import Ros1Master
 from visnav.bridge.master_api import advertised_host, master_uri_from_env
 from visnav.bridge.ros1_node import Ros1Node
-from visnav.graph import Context, Node
+from visnav.graph import Context, Node, NodeOptions
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = ["DEFAULT_NODE_NAME", "Ros1BridgeNode", "open_ros1_node", "run_bridge"]
 
@@ -72,7 +75,7 @@ class Ros1BridgeNode(Node):
         MasterUnreachableError: no master answers.
     """
 
-    def __init__(self, name: str = "ros1_bridge", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "ros1_bridge", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         topics = self.declare_parameter("topics", [""]).value
         exclude = self.declare_parameter("exclude", [""]).value

@@ -30,7 +30,7 @@ from visnav.graph.names import (
     validate_node_name,
     validate_topic_name,
 )
-from visnav.graph.node import Node, NodeLogger, Publisher, Subscription, Timer
+from visnav.graph.node import Node, NodeLogger, NodeOptions, Publisher, Subscription, Timer
 from visnav.graph.param_dataclass import (
     ParamBinding,
     ParameterDescriptor,
@@ -50,6 +50,7 @@ from visnav.graph.qos import (
     qos_profile_system_default,
     qos_profile_tf_static,
 )
+from visnav.graph.subscription import SerializedMessage
 
 __all__ = [
     "Clock",
@@ -74,6 +75,7 @@ __all__ = [
     "Node",
     "NodeInfo",
     "NodeLogger",
+    "NodeOptions",
     "ParamBinding",
     "Parameter",
     "ParameterAlreadyDeclaredError",
@@ -84,6 +86,7 @@ __all__ = [
     "Publisher",
     "QoSProfile",
     "ReliabilityPolicy",
+    "SerializedMessage",
     "SetParametersResult",
     "Subscription",
     "TimePoint",

@@ -259,6 +259,7 @@ class Context:
 
         Dropping them also releases remote samples' buffers (a sender's shared memory).
         """
+        sub.stop()
         with self._lock:
             sub.queue.clear()
             topic = self._topics.get(sub.topic_name)

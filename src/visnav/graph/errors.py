@@ -6,6 +6,7 @@ from visnav.errors import VisnavError
 
 __all__ = [
     "GraphError",
+    "LoggerError",
     "ParameterAlreadyDeclaredError",
     "ParameterError",
     "ParameterNotDeclaredError",
@@ -16,6 +17,10 @@ __all__ = [
 
 class GraphError(VisnavError):
     """A node, topic or executor operation failed."""
+
+
+class LoggerError(GraphError, ValueError):
+    """A logger call has a bad filter parameter, or changed its filters at one call site."""
 
 
 class TopicTypeConflictError(GraphError, TypeError):

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import NamedTuple
 
-from visnav.errors import VisnavError
+from visnav.graph.errors import GraphError
 from visnav.graph.names import (
     InvalidNameError,
     demangle_name,
@@ -107,7 +107,7 @@ _DEFAULT_DEPTH = 42  # rmw_zenoh's depth for "system default" (depth 0)
 _DEFAULT_QOS_CODES = (1, 2, 1, _DEFAULT_DEPTH)  # reliable, volatile, keep_last, 42
 
 
-class KeyExpressionError(VisnavError, ValueError):
+class KeyExpressionError(GraphError, ValueError):
     """A key expression or one of its parts is malformed (the text names the part and the fix)."""
 
 

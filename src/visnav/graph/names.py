@@ -26,7 +26,7 @@ import re
 import string
 from collections.abc import Mapping
 
-from visnav.errors import VisnavError
+from visnav.graph.errors import GraphError
 
 __all__ = [
     "NAMESPACE_MAX_LENGTH",
@@ -88,7 +88,7 @@ _PROBLEMS = {
 }
 
 
-class InvalidNameError(VisnavError, ValueError):
+class InvalidNameError(GraphError, ValueError):
     """A node name, namespace, topic name or remap rule breaks the ROS 2 naming rules.
 
     The message names the offending value, the rule it breaks, where, and the fix.

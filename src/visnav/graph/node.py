@@ -21,17 +21,17 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import logging
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypedDict, TypeVar
 
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.context import Context
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.graph_cache import EndpointInfo
 from visnav.graph.keys import liveliness_token, topic_key
+from visnav.graph.logger import NodeLogger
 from visnav.graph.message_info import MessageInfo, encode_attachment
 from visnav.graph.names import (
     RemapRule,
@@ -54,7 +54,15 @@ from visnav.msgs.serde import CdrSerializer, msg_type_name, typestore
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import Clock as ClockMsg
 
-__all__ = ["Node", "NodeLogger", "Publisher", "RemotePayload", "Subscription", "Timer"]
+__all__ = [
+    "Node",
+    "NodeLogger",
+    "NodeOptions",
+    "Publisher",
+    "RemotePayload",
+    "Subscription",
+    "Timer",
+]
 
 MsgT = TypeVar("MsgT")
 
@@ -66,34 +74,19 @@ def _type_hash(type_name: str) -> str:
     return str(typestore().hash_rihs01(type_name))
 
 
-class NodeLogger:
-    """A node's logger (rclpy's RcutilsLogger surface over :mod:`logging`)."""
+class NodeOptions(TypedDict, total=False):
+    """The keyword arguments of :class:`Node` other than its name, for subclasses to pass on.
 
-    def __init__(self, name: str) -> None:
-        self.name = name
-        self._log = logging.getLogger(f"visnav.node.{name.strip('/').replace('/', '.')}")
+    A node class written ``def __init__(self, name: str = "x", **node_kwargs:
+    Unpack[NodeOptions])`` lets type checkers check ``SomeNode(namespace=..., context=...,
+    parameter_overrides=...)`` against :class:`Node`'s own parameters.
+    """
 
-    def debug(self, message: str) -> None:
-        """Log at debug level."""
-        self._log.debug("[%s] %s", self.name, message)
-
-    def info(self, message: str) -> None:
-        """Log at info level."""
-        self._log.info("[%s] %s", self.name, message)
-
-    def warning(self, message: str) -> None:
-        """Log at warning level."""
-        self._log.warning("[%s] %s", self.name, message)
-
-    warn = warning
-
-    def error(self, message: str, *, exc_info: BaseException | None = None) -> None:
-        """Log at error level (with the traceback of ``exc_info`` if given)."""
-        self._log.error("[%s] %s", self.name, message, exc_info=exc_info)
-
-    def fatal(self, message: str) -> None:
-        """Log at critical level."""
-        self._log.critical("[%s] %s", self.name, message)
+    context: Context | None
+    namespace: str | None
+    parameter_overrides: Mapping[str, Any] | Sequence[Parameter] | None
+    remappings: Mapping[str, str] | Sequence[str] | None
+    use_sim_time: bool | None
 
 
 class Publisher(Generic[MsgT]):
@@ -316,10 +309,18 @@ class Node:
         topic: str,
         callback: Callable[[MsgT], Any] | Callable[[MsgT, MessageInfo], Any],
         qos_profile: QoSProfile | int,
+        *,
+        raw: bool = False,
+        paced: bool = False,
     ) -> Subscription[MsgT]:
         """Create a subscription (rclpy signature); ``callback(msg)`` runs in the executor.
 
-        A callback taking two arguments gets ``(msg, MessageInfo)``.
+        A callback taking two arguments gets ``(msg, MessageInfo)``. With ``raw=True`` it
+        gets a :class:`~visnav.graph.subscription.SerializedMessage` (CDR bytes copied out
+        of the transport only when read) instead of ``msg``. With ``paced=True`` (keep-last,
+        volatile) remote samples wait in the transport until the executor takes them, and
+        :meth:`Subscription.pause`/``resume`` hold them back (see
+        :mod:`visnav.graph.subscription`).
 
         Raises:
             TopicTypeConflictError: the topic carries another type in this process.
@@ -328,14 +329,13 @@ class Node:
         self._check_alive()
         qos = to_qos(qos_profile)
         name = self.resolve_topic_name(topic)
-        sub = Subscription(self, msg_type, name, callback, qos)
+        sub = Subscription(self, msg_type, name, callback, qos, raw=raw, paced=paced)
         self.context.add_subscription(sub)
         self._subscriptions.append(sub)
         z = self.context.zenoh
         if z is not None:
             key = topic_key(self.context.domain, name, sub.type_name, _type_hash(sub.type_name))
-            sub._zkey = key
-            sub._zsub = z.subscriber(key, sub.on_remote, history=sub.wants_history)
+            sub.attach_transport(z, key)
         self._announce(sub.entity_id, "MS", name, sub.type_name, qos)
         return sub
 

@@ -42,6 +42,7 @@ __all__ = [
     "ENV_LISTEN",
     "LATCHED_CHUNK",
     "TransportConfig",
+    "detach_small",
     "ZenohPublisher",
     "ZenohTransport",
     "rendezvous_port",
@@ -270,7 +271,7 @@ class ZenohPublisher:
                 self._queryable.undeclare()
 
 
-def _detach_small(payload: zenoh.ZBytes) -> zenoh.ZBytes | bytes:
+def detach_small(payload: zenoh.ZBytes) -> zenoh.ZBytes | bytes:
     """Copy a payload below :data:`SHM_THRESHOLD` bytes out of Zenoh's receive buffers."""
     return payload.to_bytes() if len(payload) < SHM_THRESHOLD else payload
 
@@ -292,7 +293,6 @@ class ZenohTransport:
         self._lock = threading.Lock()
         self._shm: Any = None
         self._shm_failed = False
-        self._handles: list[Any] = []
 
     @property
     def session(self) -> zenoh.Session:
@@ -358,12 +358,25 @@ class ZenohTransport:
         """
 
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(_detach_small(sample.payload), sample.attachment)
+            callback(detach_small(sample.payload), sample.attachment)
 
         sub = self._session.declare_subscriber(key, on_sample, allowed_origin=zenoh.Locality.REMOTE)
         if history:
             self.fetch_latched(key, callback)
         return sub
+
+    def ring_subscriber(self, key: str, capacity: int) -> Any:
+        """Declare a subscriber to remote samples on ``key`` whose queue stays in Zenoh.
+
+        The newest ``capacity`` samples wait in Zenoh's ring buffer (older ones are dropped
+        there, with no Python code run); take them with ``sub.handler.recv()`` (blocks,
+        releasing the GIL; raises once the subscriber is undeclared or the session closed)
+        or ``sub.handler.try_recv()``. Small payloads should be copied out when taken (see
+        :meth:`subscriber`).
+        """
+        return self._session.declare_subscriber(
+            key, zenoh.handlers.RingChannel(capacity), allowed_origin=zenoh.Locality.REMOTE
+        )
 
     def fetch_latched(
         self,
@@ -381,7 +394,7 @@ class ZenohTransport:
         def on_reply(reply: Any) -> None:
             ok = reply.ok
             if ok is not None:
-                callback(_detach_small(ok.payload), ok.attachment)
+                callback(detach_small(ok.payload), ok.attachment)
 
         self._session.get(
             selector,
@@ -408,14 +421,6 @@ class ZenohTransport:
                 on_delete(str(sample.key_expr))
 
         return self._session.liveliness().declare_subscriber(key, on_sample, history=True)
-
-    def query_liveliness(self, key: str, *, timeout_s: float = 1.0) -> list[str]:
-        """Return the keys of the liveliness tokens alive now that match ``key``."""
-        keys: list[str] = []
-        for reply in self._session.liveliness().get(key, timeout=timeout_s):
-            if reply.ok is not None:
-                keys.append(str(reply.ok.key_expr))
-        return keys
 
     def peers(self) -> list[str]:
         """Return the Zenoh ids of the connected peers."""
