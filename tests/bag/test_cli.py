@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -12,6 +14,8 @@ from pathlib import Path
 import pytest
 
 from visnav.bag import BagWriter, bag_info, read_bag
+from visnav.bag.errors import RecordError
+from visnav.cli import bag as cli_bag
 from visnav.cli.main import main
 from visnav.graph import Context, Node
 from visnav.msgs import String, serialize
@@ -88,3 +92,19 @@ def test_convert_and_reindex_verbs(tmp_path: Path, capsys: pytest.CaptureFixture
     assert [m.msg.data for m in read_bag(out.with_suffix(".bag"))] == ["0", "1", "2"]
     assert main(["bag", "reindex", str(out.with_suffix(".bag"))]) == 0
     assert "3 messages" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("args", "text"),
+    [
+        (["-a", "/x"], "give the topics to record, or -a"),
+        (["/x", "-x", "/y"], "-x/--exclude '/y' needs -a"),
+        (["-a", "--buffsize", "0"], "--buffsize is 0.0 MiB: expected 1 to 1048576"),
+    ],
+)
+def test_record_option_errors_are_record_errors(args: list[str], text: str) -> None:
+    parser = argparse.ArgumentParser()
+    cli_bag.add_arguments(parser)
+    ns = parser.parse_args(["record", *args])
+    with pytest.raises(RecordError, match=re.escape(text)):
+        ns.func(ns)

@@ -92,8 +92,8 @@ def test_simulated_robots_have_no_error(
 @pytest.mark.slow
 def test_simulated_car_with_the_depth_frame_on_the_camera_link() -> None:
     """The rotated-cloud bug injected into a simulated run: depth <frame_name> is the link."""
+    from visnav.description.robots import car_description_path
     from visnav.sim.simulator import RobotSpawn, Simulator
-    from visnav.sim.vehicles.car import car_description_path
 
     urdf = (
         car_description_path()

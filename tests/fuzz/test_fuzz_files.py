@@ -13,13 +13,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from visnav.description.robot import load_robot
+from visnav.description.sdf_world import parse_sdf_world
+from visnav.description.urdf import parse_urdf
+from visnav.description.world import load_world
 from visnav.msgs import CameraInfo, make
 from visnav.perception.camera_info_yaml import read_camera_info_yaml, write_camera_info_yaml
 from visnav.safe_yaml import load_yaml
-from visnav.sim.robot import load_robot
-from visnav.sim.sdf_world import parse_sdf_world
-from visnav.sim.urdf import parse_urdf
-from visnav.sim.world import load_world
 from visnav.slam import TumSequence
 from visnav.slam.trajectory import read_tum
 from visnav.slam.tum import read_file_list
@@ -259,8 +259,8 @@ def _section(keys: tuple[str, ...]) -> st.SearchStrategy[dict[str, object]]:
 @FUZZ_STRUCTURED
 @given(st.data())
 def test_structured_world(data: st.DataObject) -> None:
-    from visnav.sim import world_yaml as wy
-    from visnav.sim.world_yaml import world_from_dict
+    from visnav.description import world_yaml as wy
+    from visnav.description.world_yaml import world_from_dict
 
     shape_type = data.draw(st.sampled_from([*wy._SHAPE_KEYS, "cube"]))
     shape = data.draw(_section(wy._COMMON_SHAPE_KEYS + wy._SHAPE_KEYS.get(shape_type, ())))

@@ -20,14 +20,14 @@ from visnav.launch import (
     RoslaunchImportError,
     load_launch,
 )
-from visnav.launch.static_tf import (
+from visnav.node_registry import resolve_node_class
+from visnav.tf import Buffer, transform_to_matrix
+from visnav.tf.ros import TransformListener
+from visnav.tf.static_tf import (
     StaticTransformError,
     static_transform_from_params,
     static_transform_params_from_args,
 )
-from visnav.node_registry import resolve_node_class
-from visnav.tf import Buffer, transform_to_matrix
-from visnav.tf.ros import TransformListener
 
 DATA = Path(__file__).parent / "data"
 TUTORIAL = DATA / "my_robot" / "launch" / "gazebo.launch"
@@ -207,6 +207,29 @@ def test_everything_unmappable_is_listed_in_one_error(tmp_path: Path) -> None:
         assert fragment in text, fragment
     assert "visnav maps: <launch>, <arg>" in text
     assert "ROS 2 launch files (Python or XML) are out of scope" in text
+
+
+def test_spawn_model_without_a_simulator_is_refused(tmp_path: Path) -> None:
+    """visnav has no spawn_model node: one that cannot join a sim node is an import error."""
+    (tmp_path / "r.urdf").write_text("<robot name='r'><link name='base'/></robot>")
+    f = write(
+        tmp_path / "spawn.launch",
+        """
+        <launch>
+          <param name="robot_description" textfile="$(dirname)/r.urdf"/>
+          <node pkg="gazebo_ros" type="spawn_model" name="spawn"
+                args="-urdf -param robot_description -model r"/>
+        </launch>
+        """,
+    )
+    with pytest.raises(RoslaunchImportError) as info:
+        load_launch(f)
+    text = str(info.value)
+    assert "\n" not in text
+    assert "spawn_model (" in text
+    assert "/spawn)" in text
+    assert "found 0 gazebo / sim node(s) and 1 spawn_model node(s)" in text
+    assert "Fix: " in text
 
 
 def test_ros1_semantics_params_remaps_includes(tmp_path: Path) -> None:

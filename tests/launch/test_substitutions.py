@@ -53,7 +53,7 @@ def test_substitution_table(ctx: SubstitutionContext, text: str, expected: str) 
 def test_find_dirname_and_anon(ctx: SubstitutionContext, tmp_path: Path) -> None:
     share = substitute("$(find-pkg-share visnav)", ctx)
     assert Path(share) == visnav_share()
-    assert (Path(share) / "scenarios" / "robots" / "car.urdf.xacro").is_file()
+    assert (Path(share) / "description" / "robots" / "car.urdf.xacro").is_file()
     assert substitute("$(find my_pkg)/urdf", ctx) == f"{tmp_path.resolve()}/urdf"
     assert substitute("$(dirname)", ctx) == str(tmp_path.resolve())
     first = substitute("$(anon talker)", ctx)

@@ -18,7 +18,7 @@ import pytest
 from visnav.graph import Context, Node
 from visnav.launch import Launcher, load_launch
 from visnav.msgs import String
-from visnav.node_registry import NodeNotBuiltError
+from visnav.node_registry import UnknownNodeError
 
 
 def write(path: Path, text: str) -> Path:
@@ -194,7 +194,7 @@ def test_a_crashing_shared_node_with_on_error_shutdown_stops_the_children(
     assert not alive(talker)
 
 
-def test_nodes_not_built_yet_fail_before_anything_starts(tmp_path: Path) -> None:
+def test_spawn_model_is_no_node_a_launch_file_can_start(tmp_path: Path) -> None:
     f = write(
         tmp_path / "p.yaml",
         """
@@ -203,13 +203,8 @@ def test_nodes_not_built_yet_fail_before_anything_starts(tmp_path: Path) -> None
           - node: {exec: spawn_model}
         """,
     )
-    launcher = Launcher(load_launch(f))
-    with pytest.raises(
-        NodeNotBuiltError,
-        match=r"p.yaml:3: node 'spawn_model' \(/spawn_model\) is not built yet: issue 3",
-    ):
-        launcher.run()
-    assert launcher.events == []
+    with pytest.raises(UnknownNodeError, match=r"p.yaml:3: unknown node 'spawn_model'"):
+        load_launch(f)
 
 
 def _launch_cli(domain: int, tmp: Path, *args: str) -> subprocess.Popen[str]:

@@ -30,13 +30,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
+from visnav.description.gazebo import CameraSpec, default_principal_point
+from visnav.description.rigid import R_SENSOR_MJCAM, matrix_to_quat_wxyz
 from visnav.perception._calibration_common import CalibrationError
 from visnav.perception.calibration import calibrate, read_camera_info_yaml
 from visnav.perception.calibration_images import header_size, read_gray_image
 from visnav.perception.chessboard import MAX_IMAGE_PIXELS, find_chessboard, refine_radius
-from visnav.sim._rigid import R_SENSOR_MJCAM, matrix_to_quat_wxyz
 from visnav.sim.camera import CameraSensor, configure_mujoco_camera
-from visnav.sim.gazebo import CameraSpec, default_principal_point
 
 # ------------------------------------------------------------------ the simulated board
 # A white plate with black square tiles on a mocap body in front of a camera configured

@@ -13,11 +13,17 @@ import mujoco
 import numpy as np
 import pytest
 
+from visnav.description.gazebo import (
+    CameraSpec,
+    GaussianNoise,
+    LensDistortion,
+    default_principal_point,
+)
+from visnav.description.rigid import R_SENSOR_MJCAM, matrix_to_quat_wxyz
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import cloud_to_structured, cloud_to_xyz
 from visnav.msgs.time import time_to_ns
 from visnav.sim import camera as camera_module
-from visnav.sim._rigid import R_SENSOR_MJCAM, matrix_to_quat_wxyz
 from visnav.sim.camera import (
     CameraSensor,
     RenderContext,
@@ -29,7 +35,7 @@ from visnav.sim.camera import (
     select_gl_backend,
     undistort_normalized,
 )
-from visnav.sim.gazebo import CameraSpec, GaussianNoise, LensDistortion, default_principal_point
+from visnav.sim.errors import CameraSensorError
 
 W, H = 64, 48
 
@@ -459,9 +465,9 @@ def test_sensor_rejects_unconfigured_camera(mujoco_gl: str) -> None:
     mj = mujoco.MjSpec()
     mj.worldbody.add_camera(name="plain", fovy=45)
     model = mj.compile()
-    with pytest.raises(camera_module.VisnavError, match="configure_mujoco_camera"):
+    with pytest.raises(CameraSensorError, match="configure_mujoco_camera"):
         CameraSensor(model, make_spec(), camera="plain")
-    with pytest.raises(camera_module.VisnavError, match="does not exist"):
+    with pytest.raises(CameraSensorError, match="does not exist"):
         CameraSensor(model, make_spec(), camera="nope")
 
 

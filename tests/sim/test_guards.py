@@ -9,6 +9,9 @@ from pathlib import Path
 import mujoco
 import pytest
 
+from visnav.description.robot import expand_xacro, load_robot
+from visnav.description.urdf import RobotDescriptionError
+from visnav.description.world import world_from_dict
 from visnav.graph import Context, Node
 from visnav.msgs.types import Clock
 from visnav.sim.guards import (
@@ -21,10 +24,7 @@ from visnav.sim.guards import (
     route_mujoco_warnings,
     world_bounds,
 )
-from visnav.sim.robot import expand_xacro, load_robot
 from visnav.sim.simulator import RobotSpawn, Simulator
-from visnav.sim.urdf import RobotDescriptionError
-from visnav.sim.world import world_from_dict
 
 BOX_ROBOT = """<robot name="box">
   <link name="base_link">

@@ -14,19 +14,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from visnav.description.gazebo import CameraSpec, default_principal_point, parse_gazebo_extensions
+from visnav.description.noise_specs import DepthNoise, WheelOdometryNoise
+from visnav.description.rigid import R_SENSOR_MJCAM, matrix_to_quat_wxyz
+from visnav.description.robot import load_robot
+from visnav.description.robots import resolve_robot
+from visnav.description.urdf import parse_urdf
 from visnav.errors import VisnavError
-from visnav.sim._rigid import R_SENSOR_MJCAM, matrix_to_quat_wxyz
 from visnav.sim.camera import CameraSensor, configure_mujoco_camera
-from visnav.sim.gazebo import CameraSpec, default_principal_point, parse_gazebo_extensions
-from visnav.sim.noise_models import (
-    DepthNoise,
-    WheelEncoderModel,
-    WheelOdometryNoise,
-    apply_depth_noise,
-)
-from visnav.sim.robot import load_robot
-from visnav.sim.simulator import resolve_robot
-from visnav.sim.urdf import parse_urdf
+from visnav.sim.noise_models import WheelEncoderModel, apply_depth_noise
 from visnav.sim.vehicles.diff_drive import EncoderOdometry
 
 SEPARATION = 0.36

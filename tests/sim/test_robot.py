@@ -10,11 +10,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from visnav.sim._rigid import make_transform
+from visnav.description.rigid import make_transform
+from visnav.description.robot import load_robot
+from visnav.description.urdf import RobotDescriptionError
 from visnav.sim.camera import CameraSensor
-from visnav.sim.robot import add_robot_to_spec, load_robot
-from visnav.sim.robot_state import RobotStateModel
-from visnav.sim.urdf import RobotDescriptionError
+from visnav.sim.robot import add_robot_to_spec
+from visnav.tf.robot_state import RobotStateModel
 
 INERTIA = '<inertia ixx="0.02" ixy="0.001" ixz="0" iyy="0.03" iyz="0" izz="0.04"/>'
 

@@ -13,7 +13,9 @@ import yourdfpy
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from visnav.sim.vehicles.car import car_description_path
+from visnav.description.errors import QuadrotorParamsError
+from visnav.description.robots import car_description_path, quadrotor_description_path
+from visnav.description.vehicle_params import QuadrotorParams
 from visnav.sim.vehicles.diff_drive import (
     DiffDriveConfig,
     DiffDriveController,
@@ -24,11 +26,9 @@ from visnav.sim.vehicles.quadrotor import (
     PositionCommand,
     QuadrotorController,
     QuadrotorError,
-    QuadrotorParams,
     QuadrotorState,
     SO3Gains,
     add_quadrotor,
-    quadrotor_description_path,
     so3_control,
 )
 
@@ -435,14 +435,14 @@ def test_quadrotor_bad_input() -> None:
         QuadrotorController(model, body="fixed")
     with pytest.raises(QuadrotorError, match="'nope' is not in"):
         QuadrotorController(model, body="nope")
-    with pytest.raises(QuadrotorError, match="max_tilt"):
+    with pytest.raises(QuadrotorParamsError, match="max_tilt"):
         QuadrotorParams(max_tilt=2.0)
     parsed = QuadrotorParams.from_plugin_params({"max_thrust": "20", "max_moment": "1 1 0.2"})
     assert parsed.max_thrust == 20.0
     assert parsed.max_moment == (1.0, 1.0, 0.2)
-    with pytest.raises(QuadrotorError, match="unknown parameter <thrust>"):
+    with pytest.raises(QuadrotorParamsError, match="unknown parameter <thrust>"):
         QuadrotorParams.from_plugin_params({"thrust": "1"})
-    with pytest.raises(QuadrotorError, match="needs 3 number"):
+    with pytest.raises(QuadrotorParamsError, match="needs 3 number"):
         QuadrotorParams.from_plugin_params({"max_moment": "1"})
 
 

@@ -13,23 +13,25 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from visnav.sim.sdf_world import parse_sdf_world
-from visnav.sim.world import (
-    WORLD_PREFIX,
+from visnav.description.sdf_world import parse_sdf_world
+from visnav.description.world import (
     Box,
     Cylinder,
     Sphere,
     WorldDescription,
     WorldError,
     WorldWarning,
-    build_world_spec,
     builtin_world_names,
     load_world,
-    obstacle_distance,
-    true_occupancy_grid,
     world_from_dict,
 )
-from visnav.sim.world_geometry import shape_aabb, shape_signed_distance
+from visnav.sim.world_geometry import (
+    obstacle_distance,
+    shape_aabb,
+    shape_signed_distance,
+    true_occupancy_grid,
+)
+from visnav.sim.world_spec import WORLD_PREFIX, build_world_spec
 
 # ----------------------------------------------------------------------------- YAML
 

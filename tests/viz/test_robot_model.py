@@ -126,9 +126,9 @@ def test_invalid_description_is_counted_not_fatal(session: Any) -> None:
 
 
 def test_quadrotor_description_shows(session: Any, vz: Any) -> None:
-    from visnav.sim.robot import expand_xacro
+    from visnav.description.robot import expand_xacro
 
-    xacro = Path(__file__).parents[2] / "src/visnav/scenarios/robots/quadrotor.urdf.xacro"
+    xacro = Path(__file__).parents[2] / "src/visnav/description/robots/quadrotor.urdf.xacro"
     text = expand_xacro(str(xacro))
     model = RobotModel(parse_robot_description(text), "world/robot_model/quadrotor")
     assert model.visuals

@@ -12,8 +12,8 @@ import time
 from collections.abc import Callable
 from types import FrameType
 
+from visnav.bag.errors import RecordError
 from visnav.bag.storage import COMPRESSIONS, FORMATS
-from visnav.errors import VisnavError
 
 __all__ = ["add_arguments"]
 
@@ -134,14 +134,14 @@ def cmd_record(args: argparse.Namespace) -> int:
 
     if args.all == bool(args.topics):
         msg = "give the topics to record, or -a for all of them (not both)"
-        raise VisnavError(msg)
+        raise RecordError(msg)
     if args.exclude is not None and not args.all:
         msg = f"-x/--exclude {args.exclude!r} needs -a (it filters the topics -a records)"
-        raise VisnavError(msg)
+        raise RecordError(msg)
     compile_exclude(args.exclude)  # a bad pattern fails before anything is opened
     if not 1.0 <= args.buffsize <= 1 << 20:
         msg = f"--buffsize is {args.buffsize} MiB: expected 1 to 1048576"
-        raise VisnavError(msg)
+        raise RecordError(msg)
     fmt = format_for_output(args.output, args.format) if args.output else args.format or "mcap"
     out = args.output or _default_output(fmt)
     with Context(args.domain) as ctx, _StopFlag() as stop:

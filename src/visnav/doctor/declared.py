@@ -2,7 +2,7 @@
 
 A URDF published on ``robot_description`` with Gazebo ``<sensor>`` blocks declares,
 per topic, the update rate, image size, horizontal field of view, clip range, frame
-and encoding (parsed with :func:`visnav.sim.gazebo.parse_gazebo_extensions`, which
+and encoding (parsed with :func:`visnav.description.gazebo.parse_gazebo_extensions`, which
 resolves the exact topic names the ``gazebo_ros`` plugins publish). It also says
 which joints are fixed (their transforms belong on ``/tf_static``). ``--expect``
 values win over the URDF's.
@@ -98,8 +98,8 @@ def _prefix(namespace: str, topic: str) -> str:
 
 def _from_urdf(text: str, topic: str) -> Declared:
     # Parsing the URDF is the simulator's job; imported here so doctor runs without it.
-    from visnav.sim.gazebo import parse_gazebo_extensions  # noqa: PLC0415
-    from visnav.sim.urdf import parse_urdf  # noqa: PLC0415
+    from visnav.description.gazebo import parse_gazebo_extensions  # noqa: PLC0415
+    from visnav.description.urdf import parse_urdf  # noqa: PLC0415
 
     urdf = parse_urdf(text, source=topic)
     ext = parse_gazebo_extensions(urdf)

@@ -16,7 +16,6 @@ from visnav.graph.errors import ParameterError
 from visnav.graph.names import InvalidNameError, resolve_node_name_and_namespace
 from visnav.graph.parameters import ParameterType
 from visnav.launch.errors import LaunchParseError
-from visnav.node_registry import PENDING_NODES, check_node_name
 
 __all__ = [
     "ON_ERROR",
@@ -252,11 +251,6 @@ class LaunchDescription:
 
 
 def _format_node(spec: NodeSpec) -> Sequence[str]:
-    try:
-        kind = check_node_name(spec.executable)
-    except LookupError:
-        kind = "unknown"
-    status = f"  (not built yet: {PENDING_NODES[spec.executable]})" if kind == "pending" else ""
     flags = [f"process={spec.process}"]
     if spec.use_sim_time is not None:
         flags.append(f"use_sim_time={str(spec.use_sim_time).lower()}")
@@ -267,7 +261,7 @@ def _format_node(spec: NodeSpec) -> Sequence[str]:
         flags.append("required")
     if spec.on_error != "log":
         flags.append(f"on_error={spec.on_error}")
-    out = [f"  {spec.fqn}  [{spec.executable}]  {' '.join(flags)}{status}"]
+    out = [f"  {spec.fqn}  [{spec.executable}]  {' '.join(flags)}"]
     for key, value in spec.params.items():
         text = repr(value)
         if len(text) > 70:

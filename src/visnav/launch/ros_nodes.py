@@ -41,10 +41,11 @@ from pathlib import Path
 from typing import Any
 
 from visnav.launch.description import NodeSpec
-from visnav.launch.static_tf import StaticTransformError, static_transform_params_from_args
+from visnav.launch.errors import RoslaunchImportError
 from visnav.launch.substitutions import VIRTUAL_PACKAGES
 from visnav.safe_yaml import YamlError, load_yaml_file
 from visnav.textfile import TextFileError, read_text
+from visnav.tf.static_tf import StaticTransformError, static_transform_params_from_args
 
 __all__ = [
     "EMPTY_WORLD_ARGS",
@@ -527,11 +528,25 @@ def fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
     model once, so a launch file's ``spawn_model`` becomes the ``sim`` node's ``robot``
     (URDF text), ``spawn`` and ``robot_namespace``. The simulator publishes the robot's
     state itself, so an imported ``robot_state_publisher`` is then left out.
+
+    Raises:
+        RoslaunchImportError: spawn_model nodes that cannot be folded (not exactly one
+            simulator and one spawned URDF): visnav has no spawn_model node.
     """
     sims = [n for n in nodes if n.executable == "sim"]
     spawns = [n for n in nodes if n.executable == "spawn_model"]
-    if len(sims) != 1 or len(spawns) != 1 or "robot_description" not in spawns[0].params:
+    if not spawns:
         return nodes
+    if len(sims) != 1 or len(spawns) != 1 or "robot_description" not in spawns[0].params:
+        where = ", ".join(f"{n.source}: {n.namespace.rstrip('/')}/{n.name}" for n in spawns)
+        msg = (
+            f"spawn_model ({where}): visnav builds the world and its robots together, so a "
+            f"spawn_model needs exactly one simulator and one spawned URDF (found {len(sims)} "
+            f"gazebo / sim node(s) and {len(spawns)} spawn_model node(s)). Fix: import a file "
+            "with one gazebo_ros empty_world.launch and one spawn_model -urdf -param, or write "
+            "a visnav launch file whose sim node lists the robots (params robot / robots)"
+        )
+        raise RoslaunchImportError(msg)
     sim, spawn = sims[0], spawns[0]
     p = spawn.params
     params = dict(sim.params)

@@ -405,7 +405,7 @@ class _File:
         if len(files) != 1:
             msg = f"{self.at(line)}xacro command {command!r}: expected one input file, got {files}"
             raise LaunchParseError(msg)
-        from visnav.sim.robot import expand_xacro  # noqa: PLC0415 - heavy, only when used
+        from visnav.description.robot import expand_xacro  # noqa: PLC0415 - heavy, only when used
 
         try:
             return expand_xacro(files[0], args=mappings, packages=dict(self.state.packages))

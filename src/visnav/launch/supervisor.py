@@ -13,6 +13,11 @@
   process on such an exception and restarts it as ``respawn`` does;
   ``on_error: shutdown`` stops the launch (exit code 1) as ``required`` does, for a
   shared node as for an ``own`` one.
+* A shared ``sim`` node with ``lockstep: true`` is the shared process's executor loop
+  (:meth:`Launcher.lockstep_driver`): the simulation advances step by step and the shared
+  nodes react at each step's sim time, as in ``visnav run``; the launch ends when its
+  ``duration`` is over. A shared node that calls ``sys.exit(n)`` in a callback ends the
+  launch with exit code ``n`` (the scenario observer does when its task is done).
 * :meth:`Launcher.request_stop` (the CLI's SIGINT handler) stops everything: children
   get SIGINT, then SIGTERM after ``sigterm_timeout`` and SIGKILL after
   ``sigkill_timeout`` more seconds, as ros2 launch does. Children are in their own
@@ -45,8 +50,6 @@ from visnav.launch.description import LaunchDescription, NodeSpec
 from visnav.launch.errors import LaunchProcessError
 from visnav.launch.param_check import report_unknown_parameters
 from visnav.node_registry import (
-    PENDING_NODES,
-    NodeNotBuiltError,
     UnknownNodeError,
     check_node_name,
     resolve_node_class,
@@ -57,6 +60,7 @@ __all__ = ["Launcher", "ProcessEvent", "check_executables", "describe_exit"]
 _LOG = logging.getLogger("visnav.launch")
 _POLL_S = 0.02
 _SPIN_S = 0.05
+_LOCKSTEP_SLICE_S = 0.1  # sim seconds between supervision polls of a lock-step launch
 
 
 @dataclass(frozen=True)
@@ -102,7 +106,6 @@ def check_executables(description: LaunchDescription) -> dict[str, type[Any]]:
         fully qualified name -> class, for the shared nodes.
 
     Raises:
-        NodeNotBuiltError: a built-in node another issue is still building.
         UnknownNodeError: an unknown name (closest suggested) or a module that does not exist.
     """
     classes: dict[str, type[Any]] = {}
@@ -110,13 +113,6 @@ def check_executables(description: LaunchDescription) -> dict[str, type[Any]]:
         at = _at(spec)
         try:
             kind = check_node_name(spec.executable)
-            if kind == "pending":
-                msg = (
-                    f"node {spec.executable!r} ({spec.fqn}) is not built yet: "
-                    f"{PENDING_NODES[spec.executable]} provides it; leave it out of the launch "
-                    "until then (visnav launch --print shows what would start)"
-                )
-                raise NodeNotBuiltError(msg)
             if spec.process == "shared":
                 classes[spec.fqn] = resolve_node_class(spec.executable)
             elif kind == "path":
@@ -160,6 +156,8 @@ class Launcher:
         sigterm_timeout: seconds between SIGINT and SIGTERM at shutdown.
         sigkill_timeout: seconds between SIGTERM and SIGKILL at shutdown.
         python: interpreter for child processes.
+        context: the :class:`~visnav.graph.Context` of the shared nodes (default: a new one
+            in ``domain``); :meth:`shutdown` shuts it down either way.
     """
 
     def __init__(
@@ -171,8 +169,10 @@ class Launcher:
         sigterm_timeout: float = 5.0,
         sigkill_timeout: float = 5.0,
         python: str = sys.executable,
+        context: Any = None,
     ) -> None:
         self.description = description
+        self._given_context = context
         self.domain = domain
         self.env = dict(os.environ if env is None else env)
         if domain is not None:
@@ -189,6 +189,7 @@ class Launcher:
         self._stop = False
         self._force = False
         self._failed = False
+        self._exit_request: int | None = None
         self._started = False
         self._shut = False
         self._events_lock = threading.Lock()
@@ -199,6 +200,11 @@ class Launcher:
         if self._stop:
             self._force = True
         self._stop = True
+
+    @property
+    def stopping(self) -> bool:
+        """True once the launch is stopping (a stop request, a required node exited)."""
+        return self._stop
 
     @property
     def pids(self) -> dict[str, int]:
@@ -269,7 +275,7 @@ class Launcher:
             return
         from visnav.graph.context import Context  # noqa: PLC0415 - only with shared nodes
 
-        self.context = Context(self.domain)
+        self.context = self._given_context or Context(self.domain)
         for spec in shared:
             try:
                 node = classes[spec.fqn](spec.name, context=self.context, **spec.node_kwargs())
@@ -347,9 +353,26 @@ class Launcher:
             return False
         return all(c.done for c in self._children)
 
+    def lockstep_driver(self) -> Any:
+        """The shared node that drives the launch lock-step, or None.
+
+        A shared node with ``lockstep`` true and a ``run_lockstep(slice_s, until=)``
+        method (the ``sim`` node with ``lockstep: true``) is the executor loop of the
+        shared process: :meth:`run` advances it a slice at a time.
+        """
+        for node in self.shared_nodes:
+            if getattr(node, "lockstep", False) and callable(getattr(node, "run_lockstep", None)):
+                return node
+        return None
+
     @property
     def exit_code(self) -> int:
-        """1 if a required node died or a node process ended with an error, else 0."""
+        """1 if a required node died or a node process ended with an error, else 0.
+
+        A shared node that ended the launch with ``sys.exit(n)`` from a callback gives ``n``.
+        """
+        if self._exit_request is not None:
+            return self._exit_request
         if self._failed:
             return 1
         if any(c.done and c.last_code not in (0, None) for c in self._children):
@@ -367,15 +390,26 @@ class Launcher:
             :attr:`exit_code`.
         """
         end = None if duration_s is None else time.monotonic() + duration_s
+
+        def stopping() -> bool:
+            return self._stop or (stop is not None and stop.is_set())
+
         try:
             self.start()
+            driver = self.lockstep_driver()
             last_poll = 0.0
-            while not self._stop and not (stop is not None and stop.is_set()):
+            while not stopping():
                 if end is not None and time.monotonic() >= end:
                     break
                 if self.context is not None:
                     try:
-                        self.context.spin_once(_SPIN_S)
+                        if driver is None:
+                            self.context.spin_once(_SPIN_S)
+                        elif not driver.run_lockstep(_LOCKSTEP_SLICE_S, until=stopping):
+                            break  # the lock-step simulation's duration is over
+                    except SystemExit as exc:  # a shared node ended the launch (sys.exit)
+                        self._exit_request = exc.code if isinstance(exc.code, int) else 1
+                        break
                     except CallbackError as exc:
                         _LOG.error("%s has on_error: shutdown: stopping the launch", exc.node_name)
                         self._failed = True

@@ -16,14 +16,12 @@ from __future__ import annotations
 
 import difflib
 import os
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from visnav.graph.names import InvalidNameError, validate_namespace, validate_node_name
+from visnav.graph.names import InvalidNameError, validate_node_name
 from visnav.launch.description import (
     ON_ERROR,
     PROCESS_KINDS,
@@ -33,11 +31,21 @@ from visnav.launch.description import (
     check_param_value,
 )
 from visnav.launch.errors import LaunchArgError, LaunchParseError, where
-from visnav.launch.static_tf import StaticTransformError, static_transform_params_from_args
-from visnav.launch.substitutions import SubstitutionContext, has_substitution, substitute
+from visnav.launch.substitutions import has_substitution, substitute
+from visnav.launch.yaml_scope import (
+    LineMap,
+    Scope,
+    arg_text,
+    flatten_params,
+    join_namespace,
+    parse_bool,
+    parse_yaml_text,
+    suggest_key,
+    typed_value,
+)
 from visnav.node_registry import UnknownNodeError, check_node_name
-from visnav.safe_yaml import LimitedSafeLoader, YamlError, load_yaml
 from visnav.textfile import TextFileError, read_text
+from visnav.tf.static_tf import StaticTransformError, static_transform_params_from_args
 
 __all__ = [
     "ENTRY_KEYS",
@@ -82,152 +90,6 @@ _ARG_TRANSLATORS: Mapping[str, Callable[[Sequence[str]], dict[str, Any]]] = {
     "static_transform_publisher": static_transform_params_from_args,
 }
 
-_TRUE = ("true", "1", "yes", "on")
-_FALSE = ("false", "0", "no", "off")
-
-
-# --------------------------------------------------------------------------- YAML with lines
-class _Map(dict[str, Any]):
-    """A YAML mapping that remembers its line."""
-
-    line: int | None = None
-
-
-class _LineLoader(LimitedSafeLoader):
-    """Safe loader (alias limits) whose mappings are :class:`_Map` with a line; no dup keys."""
-
-
-def _construct_map(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
-    loader.flatten_mapping(node)
-    result = _Map()
-    result.line = node.start_mark.line + 1
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if key in result:
-            mark = key_node.start_mark
-            msg = f"{mark.name}:{mark.line + 1}: key {key!r} appears twice in one mapping"
-            raise LaunchParseError(msg)
-        result[key] = loader.construct_object(value_node, deep=True)
-    return result
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
-
-
-def parse_yaml_text(text: str, source: str) -> Any:
-    """Parse YAML, keeping mapping lines; errors name the file and line.
-
-    Loaded with visnav's alias limits (:mod:`visnav.safe_yaml`).
-
-    Raises:
-        LaunchParseError: the text is not valid YAML or breaks a limit.
-    """
-    return load_yaml(
-        text, source=source, what="the launch file", loader=_LineLoader, error=LaunchParseError
-    )
-
-
-# --------------------------------------------------------------------------- helpers
-def parse_bool(value: Any, what: str, prefix: str = "") -> bool:
-    """Interpret a launch value as a bool (``true/false/1/0/yes/no/on/off``, any case).
-
-    Raises:
-        LaunchParseError: anything else.
-    """
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in _TRUE:
-        return True
-    if text in _FALSE:
-        return False
-    msg = f"{prefix}{what} is {value!r}: expected true or false"
-    raise LaunchParseError(msg)
-
-
-def join_namespace(base: str, namespace: str, prefix: str = "") -> str:
-    """Push ``namespace`` onto ``base`` as ROS does (absolute replaces, relative appends).
-
-    Raises:
-        LaunchParseError: the result is not a valid namespace.
-    """
-    namespace = namespace.strip()
-    if not namespace:
-        result = base
-    elif namespace.startswith("/"):
-        result = namespace
-    else:
-        result = f"{base.rstrip('/')}/{namespace}"
-    if len(result) > 1:
-        result = result.rstrip("/")
-    try:
-        validate_namespace(result)
-    except InvalidNameError as exc:
-        raise LaunchParseError(f"{prefix}namespace {namespace!r}: {exc}") from None
-    return result
-
-
-def _arg_text(value: Any) -> str:
-    """Launch arguments are strings; YAML scalars are written back the way ROS prints them."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return "" if value is None else str(value)
-
-
-def _typed(text: str) -> Any:
-    """Give a substituted string its YAML type (``"10"`` -> 10, ``"true"`` -> True)."""
-    if not text.strip():
-        return text
-    try:
-        value = load_yaml(text, source="a substituted value")
-    except YamlError:
-        return text
-    if isinstance(value, bool | int | float | str):
-        return value
-    if isinstance(value, list) and all(isinstance(v, bool | int | float | str) for v in value):
-        return value
-    return text
-
-
-def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
-    if isinstance(value, Mapping):
-        for key, sub in value.items():
-            _flatten(f"{prefix}.{key}" if prefix else str(key), sub, out)
-    else:
-        out[prefix] = value
-
-
-def _suggest_key(key: str, allowed: Iterable[str]) -> str:
-    close = difflib.get_close_matches(key, list(allowed), n=1)
-    return f"; did you mean {close[0]!r}?" if close else ""
-
-
-@dataclass
-class Scope:
-    """What an entry inherits from the entries and groups around it.
-
-    Attributes:
-        ctx: substitution context (args in scope, file, line).
-        namespace: the pushed namespace.
-        remaps: group remaps, applied after a node's own.
-        use_sim_time: group default for nodes.
-        process: group default for nodes.
-        passed_through: args an include passed with ``pass_all_args``: the included file
-            need not declare them (as roslaunch).
-    """
-
-    ctx: SubstitutionContext
-    namespace: str = "/"
-    remaps: tuple[tuple[str, str], ...] = ()
-    use_sim_time: bool | None = None
-    process: str | None = None
-    passed_through: frozenset[str] = frozenset()
-
-    def child(self) -> Scope:
-        """A scope for a group: its own copy of the args."""
-        return replace(self, ctx=replace(self.ctx, args=dict(self.ctx.args)))
-
-
 IncludeLoader = Callable[[str, Mapping[str, str], Scope, tuple[str, ...]], list[NodeSpec]]
 """Loads an included file: (path, args, scope of the include, include chain) -> nodes."""
 
@@ -264,7 +126,7 @@ class _YamlInterpreter:
         if isinstance(value, str):
             if not has_substitution(value):
                 return value
-            return _typed(substitute(value, scope.ctx))
+            return typed_value(substitute(value, scope.ctx))
         if isinstance(value, list):
             return [self.sub(v, scope, line) for v in value]
         if isinstance(value, Mapping):
@@ -274,10 +136,10 @@ class _YamlInterpreter:
     def text(self, value: Any, scope: Scope, line: int | None) -> str:
         """Substitute and return a string."""
         scope.ctx.line = line
-        return substitute(_arg_text(value), scope.ctx)
+        return substitute(arg_text(value), scope.ctx)
 
-    def body(self, kind: str, value: Any, line: int | None) -> _Map:
-        if not isinstance(value, _Map):
+    def body(self, kind: str, value: Any, line: int | None) -> LineMap:
+        if not isinstance(value, LineMap):
             msg = (
                 f"{self.at(line)}'{kind}' needs a mapping of keys "
                 f"({', '.join(sorted(ENTRY_KEYS[kind]))}), got {value!r}"
@@ -287,7 +149,7 @@ class _YamlInterpreter:
             if key not in ENTRY_KEYS[kind]:
                 msg = (
                     f"{self.at(value.line)}unknown key {key!r} in '{kind}'"
-                    f"{_suggest_key(str(key), ENTRY_KEYS[kind])} ('{kind}' takes "
+                    f"{suggest_key(str(key), ENTRY_KEYS[kind])} ('{kind}' takes "
                     f"{', '.join(sorted(ENTRY_KEYS[kind]))})"
                 )
                 if kind == "node" and key in ("pkg", "executable", "plugin"):
@@ -295,7 +157,7 @@ class _YamlInterpreter:
                 raise LaunchParseError(msg)
         return value
 
-    def enabled(self, body: _Map, scope: Scope) -> bool:
+    def enabled(self, body: LineMap, scope: Scope) -> bool:
         if "if" in body and not parse_bool(
             self.text(body["if"], scope, body.line), "'if'", self.at(body.line)
         ):
@@ -307,7 +169,7 @@ class _YamlInterpreter:
             )
         )
 
-    def required(self, body: _Map, key: str, kind: str) -> Any:
+    def required(self, body: LineMap, key: str, kind: str) -> Any:
         if key not in body or body[key] is None or body[key] == "":
             msg = f"{self.at(body.line)}'{kind}' needs '{key}'"
             raise LaunchParseError(msg)
@@ -319,7 +181,7 @@ class _YamlInterpreter:
         unused = sorted(set(self.given) - set(self.declared) - self.scope.passed_through)
         if unused:
             name = unused[0]
-            hint = _suggest_key(name, self.declared)
+            hint = suggest_key(name, self.declared)
             declared = ", ".join(sorted(self.declared)) or "none"
             msg = (
                 f"{self.source}: argument {name}:={self.given[name]!r} was given but the file "
@@ -335,7 +197,7 @@ class _YamlInterpreter:
             msg = f"{self.at(line)}expected a list of entries (- node: ...), got {entries!r}"
             raise LaunchParseError(msg)
         for entry in entries:
-            if not isinstance(entry, _Map) or len(entry) != 1:
+            if not isinstance(entry, LineMap) or len(entry) != 1:
                 msg = (
                     f"{self.at(getattr(entry, 'line', line))}each entry is one of "
                     f"{', '.join(ENTRY_KEYS)} with its keys below it (e.g. '- node: {{exec: "
@@ -344,7 +206,7 @@ class _YamlInterpreter:
                 raise LaunchParseError(msg)
             ((kind, value),) = entry.items()
             if kind not in ENTRY_KEYS:
-                hint = _suggest_key(str(kind), ENTRY_KEYS)
+                hint = suggest_key(str(kind), ENTRY_KEYS)
                 msg = (
                     f"{self.at(entry.line)}unknown entry {kind!r}{hint}"
                     f" (entries: {', '.join(ENTRY_KEYS)})"
@@ -358,7 +220,7 @@ class _YamlInterpreter:
                 continue
             getattr(self, f"do_{kind}")(body, scope)
 
-    def do_arg(self, body: _Map, scope: Scope) -> None:
+    def do_arg(self, body: LineMap, scope: Scope) -> None:
         name = str(self.required(body, "name", "arg"))
         if name in self.declared:
             msg = (
@@ -367,7 +229,7 @@ class _YamlInterpreter:
             )
             raise LaunchParseError(msg)
         self.declared[name] = body.line
-        description = _arg_text(body.get("description", ""))
+        description = arg_text(body.get("description", ""))
         default: str | None = None
         if "default" in body:
             default = self.text(body["default"], scope, body.line)
@@ -395,7 +257,7 @@ class _YamlInterpreter:
                     "of values; fix: write e.g. choices: [low, high]"
                 )
                 raise LaunchParseError(msg)
-            choices = [_arg_text(c) for c in raw]
+            choices = [arg_text(c) for c in raw]
             if value not in choices:
                 close = difflib.get_close_matches(value, choices, n=1)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
@@ -408,11 +270,11 @@ class _YamlInterpreter:
         if self.description is not None:
             self.description.args[name] = ArgInfo(name, value, default, description)
 
-    def do_let(self, body: _Map, scope: Scope) -> None:
+    def do_let(self, body: LineMap, scope: Scope) -> None:
         name = str(self.required(body, "name", "let"))
         scope.ctx.args[name] = self.text(body.get("value", ""), scope, body.line)
 
-    def do_group(self, body: _Map, scope: Scope) -> None:
+    def do_group(self, body: LineMap, scope: Scope) -> None:
         inner = scope.child()
         line = body.line
         if "namespace" in body:
@@ -428,7 +290,7 @@ class _YamlInterpreter:
             inner.process = self.process(body["process"], scope, line)
         self.entries(body.get("children"), inner, line)
 
-    def do_include(self, body: _Map, scope: Scope) -> None:
+    def do_include(self, body: LineMap, scope: Scope) -> None:
         line = body.line
         file_text = self.text(self.required(body, "file", "include"), scope, line)
         path = Path(file_text)
@@ -500,7 +362,7 @@ class _YamlInterpreter:
             if isinstance(item, str):
                 out.update(self.param_file(self.text(item, scope, line), fqn, line))
             elif isinstance(item, Mapping):
-                _flatten("", self.sub(item, scope, line), out)
+                flatten_params("", self.sub(item, scope, line), out)
             else:
                 msg = (
                     f"{self.at(line)}params: expected a mapping name: value or a parameter "
@@ -528,7 +390,7 @@ class _YamlInterpreter:
         out: dict[str, Any] = {}
         if not any(isinstance(v, Mapping) and "ros__parameters" in v for v in data.values()):
             # a flat file (ROS 1's rosparam layout): every key is a parameter of this node
-            _flatten("", data, out)
+            flatten_params("", data, out)
             return out
         if not keys & set(data):
             msg = (
@@ -545,10 +407,10 @@ class _YamlInterpreter:
                     "'ros__parameters:' mapping (ROS 2 parameter file format)"
                 )
                 raise LaunchParseError(msg)
-            _flatten("", section["ros__parameters"] or {}, out)
+            flatten_params("", section["ros__parameters"] or {}, out)
         return out
 
-    def do_node(self, body: _Map, scope: Scope) -> None:
+    def do_node(self, body: LineMap, scope: Scope) -> None:
         line = body.line
         at = self.at(line)
         executable = self.text(self.required(body, "exec", "node"), scope, line)
@@ -684,7 +546,7 @@ def load_yaml_launch(
         via = f" (included from {chain[-1]})" if chain else ""
         raise LaunchParseError(f"{exc}{via}") from None
     data = parse_yaml_text(text, str(file))
-    if not isinstance(data, _Map) or "launch" not in data:
+    if not isinstance(data, LineMap) or "launch" not in data:
         msg = (
             f"{file}:1: a visnav launch file is a mapping with a 'launch:' list of entries "
             "(see docs/launch.md)"

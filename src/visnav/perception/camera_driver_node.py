@@ -33,12 +33,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import CameraInfo, Header
 from visnav.perception.camera_driver import (
@@ -53,6 +53,9 @@ from visnav.perception.camera_driver import (
     scale_camera_info,
 )
 from visnav.perception.image_transport import ImageTransportPublisher
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = ["CameraDriverNode", "CvCameraNode", "DriverSettings", "UsbCamNode"]
 
@@ -253,7 +256,7 @@ class UsbCamNode(CameraDriverNode):
             the device does not offer.
     """
 
-    def __init__(self, name: str = "usb_cam", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "usb_cam", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         self._start_or_destroy(self._settings)
 
@@ -316,7 +319,7 @@ class CvCameraNode(CameraDriverNode):
         CameraDriverError: a parameter out of range or a source that does not open.
     """
 
-    def __init__(self, name: str = "cv_camera", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "cv_camera", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         self._start_or_destroy(self._settings)
 

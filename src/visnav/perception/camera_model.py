@@ -44,9 +44,7 @@ Where visnav differs, on purpose:
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, TypeVar, overload
 
 import cv2
@@ -55,6 +53,19 @@ from numpy.typing import ArrayLike, NDArray
 
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import CameraInfo, Time
+from visnav.perception._camera_info import (
+    DISTORTION_MODELS,
+    EQUIDISTANT,
+    PLUMB_BOB,
+    RATIONAL_POLYNOMIAL,
+    Calibration,
+    Roi,
+    RoiState,
+    as_points,
+    binned,
+    parse_camera_info,
+    shaped,
+)
 from visnav.perception.errors import CameraModelError
 
 __all__ = [
@@ -65,192 +76,17 @@ __all__ = [
     "PinholeCameraModel",
 ]
 
-PLUMB_BOB = "plumb_bob"
-RATIONAL_POLYNOMIAL = "rational_polynomial"
-EQUIDISTANT = "equidistant"
-
-#: Distortion models this camera model applies, with the length REP 104 gives ``D``.
-DISTORTION_MODELS: dict[str, int] = {PLUMB_BOB: 5, RATIONAL_POLYNOMIAL: 8, EQUIDISTANT: 4}
-
-_COEFFICIENT_NAMES = {
-    PLUMB_BOB: "k1, k2, p1, p2, k3",
-    RATIONAL_POLYNOMIAL: "k1, k2, p1, p2, k3, k4, k5, k6",
-    EQUIDISTANT: "k1, k2, k3, k4",
-}
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 _REMAP_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.int16), *_FLOAT_DTYPES)
 _MAX_REMAP_CHANNELS = 4
-
-Roi = tuple[int, int, int, int]
-"""A region of interest ``(x_offset, y_offset, width, height)`` in pixels."""
 
 _Maps = tuple[NDArray[np.int16], NDArray[np.uint16]]
 _M = TypeVar("_M", bound="PinholeCameraModel")
 
 
-@dataclass(frozen=True)
-class _Calibration:
-    """The parts of a CameraInfo that the full-resolution maps depend on (normalized)."""
-
-    width: int
-    height: int
-    distortion_model: str
-    d: tuple[float, ...]
-    k: tuple[float, ...]
-    r: tuple[float, ...]
-    p: tuple[float, ...]
-    binning_x: int
-    binning_y: int
-
-
-@dataclass(frozen=True)
-class _RoiState:
-    x: int
-    y: int
-    width: int
-    height: int
-    do_rectify: bool
-
-
-def _floats(value: Any, field: str, length: int | None) -> tuple[float, ...]:
-    try:
-        arr = np.asarray(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        text = f"CameraInfo.{field} is {value!r}: expected a sequence of numbers ({exc})"
-        raise CameraModelError(text) from exc
-    if length is not None and arr.size != length:
-        text = f"CameraInfo.{field} has {arr.size} values: expected {length} (row-major)"
-        raise CameraModelError(text)
-    if not np.isfinite(arr).all():
-        text = f"CameraInfo.{field} is {arr.tolist()}: every value must be finite"
-        raise CameraModelError(text)
-    return tuple(float(x) for x in arr)
-
-
-def _format_list(values: tuple[float, ...]) -> str:
-    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
-
-
-def _parse(info: CameraInfo) -> tuple[_Calibration, _RoiState]:
-    """Validate a CameraInfo and return its normalized calibration and ROI."""
-    width, height = int(info.width), int(info.height)
-    if width <= 0 or height <= 0:
-        text = (
-            f"CameraInfo width x height is {width} x {height}: expected the full-resolution "
-            "image size in pixels (both > 0)"
-        )
-        raise CameraModelError(text)
-    k = _floats(info.k, "k", 9)
-    p = _floats(info.p, "p", 12)
-    r = _floats(info.r, "r", 9)
-    d = _floats(info.d, "d", None)
-    if not any(k):
-        text = (
-            "CameraInfo.k is all zero: the camera is uncalibrated (image_proc refuses to "
-            "rectify it); calibrate it (visnav calibrate) and publish the result, e.g. via "
-            "the camera node's camera_info_url"
-        )
-        raise CameraModelError(text)
-    if k[0] == 0.0 or k[4] == 0.0:
-        text = f"CameraInfo.k is {_format_list(k)}: fx (k[0]) and fy (k[4]) must be non-zero"
-        raise CameraModelError(text)
-    if not any(p):
-        suggestion = _format_list((*k[0:3], 0.0, *k[3:6], 0.0, *k[6:9], 0.0))
-        text = (
-            "CameraInfo.p is all zero: fx, fy, cx, cy are read from P (image_geometry does not "
-            "fall back to K); for a monocular camera that is not rectified set "
-            f"p = {suggestion} (K with a zero fourth column)"
-        )
-        raise CameraModelError(text)
-    if p[0] == 0.0 or p[5] == 0.0:
-        text = f"CameraInfo.p is {_format_list(p)}: fx' (p[0]) and fy' (p[5]) must be non-zero"
-        raise CameraModelError(text)
-    model = str(info.distortion_model)
-    nonzero = any(d)
-    if model in DISTORTION_MODELS:
-        expected = DISTORTION_MODELS[model]
-        if nonzero and len(d) != expected:
-            text = (
-                f"CameraInfo.d has {len(d)} coefficients {_format_list(d)} for distortion_model "
-                f"{model!r}: expected {expected} ({_COEFFICIENT_NAMES[model]}); "
-                "fix the calibration file or the distortion_model name"
-            )
-            raise CameraModelError(text)
-    elif nonzero:
-        close = difflib.get_close_matches(model, list(DISTORTION_MODELS), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        text = (
-            f"CameraInfo.distortion_model is {model!r} with non-zero d {_format_list(d)}: "
-            f"expected one of {', '.join(DISTORTION_MODELS)} (REP 104){hint}"
-        )
-        raise CameraModelError(text)
-    if nonzero and not any(r):
-        text = (
-            "CameraInfo.r is all zero but d is non-zero: rectification needs R; "
-            "a monocular camera uses the identity r = [1, 0, 0, 0, 1, 0, 0, 0, 1]"
-        )
-        raise CameraModelError(text)
-    binning_x = int(info.binning_x) or 1
-    binning_y = int(info.binning_y) or 1
-    roi = info.roi
-    rx, ry, rw, rh = int(roi.x_offset), int(roi.y_offset), int(roi.width), int(roi.height)
-    if rx == 0 and ry == 0 and rw == 0 and rh == 0:
-        rw, rh = width, height
-    if rw <= 0 or rh <= 0 or rx + rw > width or ry + rh > height:
-        text = (
-            f"CameraInfo.roi is x_offset={rx}, y_offset={ry}, width={rw}, height={rh}: expected "
-            f"a non-empty region inside the {width} x {height} image (all zero = full image)"
-        )
-        raise CameraModelError(text)
-    if rw // binning_x == 0 or rh // binning_y == 0:
-        text = (
-            f"CameraInfo binning_x/binning_y is {binning_x}/{binning_y}: larger than the "
-            f"{rw} x {rh} region it bins"
-        )
-        raise CameraModelError(text)
-    calib = _Calibration(width, height, model, d, k, r, p, binning_x, binning_y)
-    return calib, _RoiState(rx, ry, rw, rh, bool(roi.do_rectify))
-
-
 def _frozen(array: NDArray[np.float64]) -> NDArray[np.float64]:
     array.flags.writeable = False
     return array
-
-
-def _binned(
-    k: NDArray[np.float64], p: NDArray[np.float64], bx: int, by: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Scale K and P for binning (image_geometry's K_binned / P_binned)."""
-    k = k.copy()
-    p = p.copy()
-    if bx > 1:
-        k[0, 0] /= bx
-        k[0, 2] /= bx
-        p[0, 0] /= bx
-        p[0, 2] /= bx
-        p[0, 3] /= bx
-    if by > 1:
-        k[1, 1] /= by
-        k[1, 2] /= by
-        p[1, 1] /= by
-        p[1, 2] /= by
-        p[1, 3] /= by
-    return k, p
-
-
-def _as_points(values: ArrayLike, dim: int, name: str) -> tuple[NDArray[np.float64], bool]:
-    """Return (N, dim) float64 points and whether the input was a single point."""
-    arr = np.asarray(values, dtype=np.float64)
-    if arr.ndim == 1 and arr.shape[0] == dim:
-        return arr.reshape(1, dim), True
-    if arr.ndim == 2 and arr.shape[1] == dim:
-        return arr, False
-    text = f"{name} has shape {arr.shape}: expected ({dim},) or (N, {dim})"
-    raise CameraModelError(text)
-
-
-def _shaped(points: NDArray[np.float64], single: bool) -> NDArray[np.float64]:
-    return points[0].copy() if single else points
 
 
 class _FromCameraInfo:
@@ -297,8 +133,8 @@ class PinholeCameraModel:
     from_camera_info = _FromCameraInfo()
 
     def __init__(self) -> None:
-        self._calib: _Calibration | None = None
-        self._roi = _RoiState(0, 0, 0, 0, False)
+        self._calib: Calibration | None = None
+        self._roi = RoiState(0, 0, 0, 0, False)
         self._info: CameraInfo | None = None
         self._frame_id = ""
         self._stamp = Time(sec=0, nanosec=0)
@@ -316,7 +152,7 @@ class PinholeCameraModel:
 
     def _update(self, info: CameraInfo) -> bool:
         """Set the camera from a CameraInfo; return whether calibration or ROI changed."""
-        calib, roi = _parse(info)
+        calib, roi = parse_camera_info(info)
         full_dirty = calib != self._calib
         reduced_dirty = full_dirty or roi != self._roi
         self._info = info
@@ -342,11 +178,11 @@ class PinholeCameraModel:
             k[1, 2] -= roi.y
             p[0, 2] -= roi.x
             p[1, 2] -= roi.y
-            k, p = _binned(k, p, calib.binning_x, calib.binning_y)
+            k, p = binned(k, p, calib.binning_x, calib.binning_y)
             self._k, self._p = _frozen(k), _frozen(p)
         return reduced_dirty
 
-    def _calibration(self) -> _Calibration:
+    def _calibration(self) -> Calibration:
         if self._calib is None:
             text = (
                 "the camera model has no calibration yet: call model.from_camera_info(info) "
@@ -524,19 +360,19 @@ class PinholeCameraModel:
 
     def to_full_resolution(self, uv_reduced: ArrayLike) -> NDArray[np.float64]:
         """Map reduced-image pixels (binned, ROI) to full-resolution pixels."""
-        pts, single = _as_points(uv_reduced, 2, "uv_reduced")
+        pts, single = as_points(uv_reduced, 2, "uv_reduced")
         x, y, _, _ = self.rectified_roi
         calib = self._calibration()
         out = pts * (calib.binning_x, calib.binning_y) + (x, y)
-        return _shaped(out, single)
+        return shaped(out, single)
 
     def to_reduced_resolution(self, uv_full: ArrayLike) -> NDArray[np.float64]:
         """Map full-resolution pixels to reduced-image pixels (binned, ROI)."""
-        pts, single = _as_points(uv_full, 2, "uv_full")
+        pts, single = as_points(uv_full, 2, "uv_full")
         x, y, _, _ = self.rectified_roi
         calib = self._calibration()
         out = (pts - (x, y)) / (calib.binning_x, calib.binning_y)
-        return _shaped(out, single)
+        return shaped(out, single)
 
     # ------------------------------------------------------------ projection
 
@@ -549,7 +385,7 @@ class PinholeCameraModel:
         Returns:
             (2,) or (N, 2) pixel coordinates ``u = (fx x + Tx) / z + cx``; NaN where z is 0.
         """
-        pts, single = _as_points(xyz, 3, "xyz")
+        pts, single = as_points(xyz, 3, "xyz")
         p = self.P
         z = pts[:, 2]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -557,7 +393,7 @@ class PinholeCameraModel:
             v = (p[1, 1] * pts[:, 1] + p[1, 3]) / z + p[1, 2]
         out = np.stack((u, v), axis=1)
         out[z == 0.0] = np.nan
-        return _shaped(out, single)
+        return shaped(out, single)
 
     def project_pixel_to_3d_ray(
         self, uv_rect: ArrayLike, *, normalize: bool = False
@@ -573,8 +409,8 @@ class PinholeCameraModel:
             (3,) or (N, 3): ``((u - cx - Tx) / fx, (v - cy - Ty) / fy, 1)``, optionally
             scaled to length 1.
         """
-        pts, single = _as_points(uv_rect, 2, "uv_rect")
-        return _shaped(self._rays(pts, self.P, normalize=normalize), single)
+        pts, single = as_points(uv_rect, 2, "uv_rect")
+        return shaped(self._rays(pts, self.P, normalize=normalize), single)
 
     @staticmethod
     def _rays(
@@ -622,10 +458,10 @@ class PinholeCameraModel:
             has no distortion.
         """
         self._calibration()
-        pts, single = _as_points(uv_raw, 2, "uv_raw")
+        pts, single = as_points(uv_raw, 2, "uv_raw")
         if not self._has_distortion:
-            return _shaped(pts.copy(), single)
-        return _shaped(self._rectify_points(pts, self._k, self._p, iterations), single)
+            return shaped(pts.copy(), single)
+        return shaped(self._rectify_points(pts, self._k, self._p, iterations), single)
 
     def _rectify_points(
         self,
@@ -664,10 +500,10 @@ class PinholeCameraModel:
             (2,) or (N, 2) raw pixels; the input unchanged if the model has no distortion.
         """
         self._calibration()
-        pts, single = _as_points(uv_rect, 2, "uv_rect")
+        pts, single = as_points(uv_rect, 2, "uv_rect")
         if not self._has_distortion:
-            return _shaped(pts.copy(), single)
-        return _shaped(self._unrectify_points(pts, self._k, self._p), single)
+            return shaped(pts.copy(), single)
+        return shaped(self._unrectify_points(pts, self._k, self._p), single)
 
     def _unrectify_points(
         self, pts: NDArray[np.float64], k: NDArray[np.float64], p: NDArray[np.float64]
@@ -738,7 +574,7 @@ class PinholeCameraModel:
     def _binned_size_kp(self) -> tuple[tuple[int, int], NDArray[np.float64], NDArray[np.float64]]:
         calib = self._calibration()
         size = (calib.width // calib.binning_x, calib.height // calib.binning_y)
-        k, p = _binned(self._k_full, self._p_full, calib.binning_x, calib.binning_y)
+        k, p = binned(self._k_full, self._p_full, calib.binning_x, calib.binning_y)
         return size, k, p
 
     def _build_rectify_maps(self) -> _Maps:

@@ -14,16 +14,17 @@
 
 Topic names are relative, so a node in namespace ``/camera`` (or with remappings)
 connects to ``/camera/image_raw`` etc. Processing errors of one message are logged
-(once per distinct text) and the message is dropped; the node keeps running.
+(at most once per 5 s per node, with the count dropped so far) and the message is
+dropped; the node keeps running.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from visnav import message_filters
 from visnav.errors import VisnavError
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params
 from visnav.graph.qos import qos_profile_sensor_data
 from visnav.msgs.image import check_image
@@ -38,6 +39,9 @@ from visnav.perception.node_params import (
     PointCloudXyzrgbParams,
 )
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
 __all__ = [
     "ConvertMetricNode",
     "DepthImageToLaserScanNode",
@@ -48,20 +52,20 @@ __all__ = [
 
 
 _WARN_AFTER_FRAMES = 10
+_DROP_LOG_PERIOD_S = 5.0  # at most one "dropped a message" error per node per 5 s
 
 
 class _PerceptionNode(Node):
-    def __init__(self, name: str, **node_kwargs: Any) -> None:
+    def __init__(self, name: str, **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
-        self._reported: set[str] = set()
         self.dropped = 0
 
     def _fail(self, exc: VisnavError) -> None:
         self.dropped += 1
-        text = str(exc)
-        if text not in self._reported:
-            self._reported.add(text)
-            self.get_logger().error(f"dropped a message: {text}")
+        self.get_logger().error(
+            f"dropped a message ({self.dropped} so far): {exc}",
+            throttle_duration_sec=_DROP_LOG_PERIOD_S,
+        )
 
 
 class ImageProcNode(_PerceptionNode):
@@ -72,7 +76,7 @@ class ImageProcNode(_PerceptionNode):
         **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
     """
 
-    def __init__(self, name: str = "image_proc", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "image_proc", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, ImageProcParams)
         self.interpolation, self.debayer, queue = p.interpolation, p.debayer, p.queue_size
@@ -102,7 +106,7 @@ class ImageProcNode(_PerceptionNode):
 class PointCloudXyzNode(_PerceptionNode):
     """depth_image_proc/point_cloud_xyz: depth image + camera_info -> ``points``."""
 
-    def __init__(self, name: str = "point_cloud_xyz", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "point_cloud_xyz", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, PointCloudXyzParams)
         queue, invalid = p.queue_size, p.invalid_depth
@@ -123,7 +127,9 @@ class PointCloudXyzNode(_PerceptionNode):
 class PointCloudXyzrgbNode(_PerceptionNode):
     """depth_image_proc/point_cloud_xyzrgb: registered depth + colour -> coloured cloud."""
 
-    def __init__(self, name: str = "point_cloud_xyzrgb", **node_kwargs: Any) -> None:
+    def __init__(
+        self, name: str = "point_cloud_xyzrgb", **node_kwargs: Unpack[NodeOptions]
+    ) -> None:
         super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, PointCloudXyzrgbParams)
         queue, exact = p.queue_size, p.exact_sync
@@ -149,7 +155,7 @@ class PointCloudXyzrgbNode(_PerceptionNode):
 class ConvertMetricNode(_PerceptionNode):
     """depth_image_proc/convert_metric: 16UC1 mm -> 32FC1 m (``image_raw`` -> ``image``)."""
 
-    def __init__(self, name: str = "convert_metric", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "convert_metric", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         self._pub = self.create_publisher(Image, "image", 5)
         self.create_subscription(Image, "image_raw", self._on_image, 5)
@@ -168,7 +174,9 @@ class DepthImageToLaserScanNode(_PerceptionNode):
     (no stamp matching between them).
     """
 
-    def __init__(self, name: str = "depthimage_to_laserscan", **node_kwargs: Any) -> None:
+    def __init__(
+        self, name: str = "depthimage_to_laserscan", **node_kwargs: Unpack[NodeOptions]
+    ) -> None:
         super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, DepthImageToLaserScanParams)
         self.converter = DepthImageToLaserScan(

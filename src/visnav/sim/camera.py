@@ -1,6 +1,6 @@
 """Camera and depth-camera rendering consistent with the published calibration.
 
-A :class:`CameraSensor` renders one :class:`~visnav.sim.gazebo.CameraSpec` from a
+A :class:`CameraSensor` renders one :class:`~visnav.description.gazebo.CameraSpec` from a
 compiled MuJoCo model: RGB from MuJoCo's lit pass (shadows and reflections off)
 and depth from a separate depth pass (segmentation colours, depth buffer read
 back and linearised), never from the lit pass.
@@ -47,12 +47,12 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from visnav.errors import VisnavError
+from visnav.description.gazebo import CameraSpec, LensDistortion
 from visnav.msgs.image import numpy_to_image
 from visnav.msgs.pointcloud import dtype_to_fields
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import CameraInfo, Header, Image, PointCloud2, RegionOfInterest
-from visnav.sim.gazebo import CameraSpec, LensDistortion
+from visnav.sim.errors import CameraSensorError
 from visnav.sim.gl import RenderContext, RenderingUnavailableError, select_gl_backend
 from visnav.sim.noise_models import apply_depth_noise
 
@@ -162,7 +162,7 @@ def _pixel_rays(
             f"the {spec.width}x{spec.height} image (residual {residual:.3g}); the coefficients "
             "fold the image. Fix: use smaller k1/k2/k3/p1/p2"
         )
-        raise VisnavError(msg)
+        raise CameraSensorError(msg)
     return x, y
 
 
@@ -325,7 +325,7 @@ def _wrap_image(array: NDArray[Any], encoding: str, header: Header) -> Image:
 
 
 class CameraSensor:
-    """Renders a :class:`~visnav.sim.gazebo.CameraSpec` from a compiled MuJoCo model.
+    """Renders a :class:`~visnav.description.gazebo.CameraSpec` from a compiled MuJoCo model.
 
     Args:
         model: the compiled model holding the camera (see
@@ -339,7 +339,7 @@ class CameraSensor:
 
     Raises:
         RenderingUnavailableError: no headless OpenGL.
-        VisnavError: the camera does not exist, or its MuJoCo intrinsics do not
+        CameraSensorError: the camera does not exist, or its MuJoCo intrinsics do not
             match ``spec`` (build it with :func:`configure_mujoco_camera`).
     """
 
@@ -364,7 +364,7 @@ class CameraSensor:
                 f"MuJoCo camera {camera!r} does not exist (cameras: {names}). Fix: add the "
                 "robot with add_robot_to_spec before compiling"
             )
-            raise VisnavError(msg)
+            raise CameraSensorError(msg)
         self.spec = spec
         self.model = model
         self.camera_id = int(cam_id)
@@ -377,7 +377,7 @@ class CameraSensor:
                 f"camera {spec.name!r} needs a {want} canvas. Fix: configure it with "
                 "configure_mujoco_camera"
             )
-            raise VisnavError(msg)
+            raise CameraSensorError(msg)
         self.render_color = (
             render_color
             if render_color is not None
@@ -397,7 +397,7 @@ class CameraSensor:
                 f"{(self.context.max_width, self.context.max_height)}. Fix: create the context "
                 "with max_width/max_height covering every camera"
             )
-            raise VisnavError(msg)
+            raise CameraSensorError(msg)
         self.rng = np.random.default_rng(seed)
         self._noise: _ImageNoise | None = None
         if spec.noise.active and spec.encoding in _NOISE_POOL_ENCODINGS and self.render_color:

@@ -16,7 +16,7 @@ from typing import Any
 
 import mujoco
 
-from visnav.errors import VisnavError
+from visnav.sim.errors import RenderingUnavailableError
 
 __all__ = ["RenderContext", "RenderingUnavailableError", "select_gl_backend"]
 
@@ -24,10 +24,6 @@ _BACKENDS = {
     "egl": ("EGL", "libegl1"),
     "osmesa": ("OSMesa", "libosmesa6"),
 }
-
-
-class RenderingUnavailableError(VisnavError, RuntimeError):
-    """No headless OpenGL backend (EGL or OSMesa) could be used."""
 
 
 def select_gl_backend() -> str:

@@ -22,13 +22,13 @@ from typing import TYPE_CHECKING
 
 import mujoco
 
-from visnav.errors import VisnavError
 from visnav.graph.introspect import wait_for_discovery
+from visnav.sim.errors import SecondSimulationError, SimulationUnstableError, SpawnPoseError
 from visnav.sim.world_geometry import shape_aabb
 
 if TYPE_CHECKING:
+    from visnav.description.worldmodel import WorldDescription
     from visnav.graph.context import Context
-    from visnav.sim.worldmodel import WorldDescription
 
 __all__ = [
     "InstabilityMonitor",
@@ -49,18 +49,6 @@ _UNSTABLE = (
     (mujoco.mjtWarning.mjWARN_BADQVEL, "velocity (QVEL)"),
     (mujoco.mjtWarning.mjWARN_BADQACC, "acceleration (QACC)"),
 )
-
-
-class SpawnPoseError(VisnavError, ValueError):
-    """A spawn pose that is not finite or lies outside the world."""
-
-
-class SimulationUnstableError(VisnavError, RuntimeError):
-    """MuJoCo found NaN, Inf or huge values in the state: the run was stopped."""
-
-
-class SecondSimulationError(VisnavError, RuntimeError):
-    """Another simulation already publishes ``/clock`` in the graph domain."""
 
 
 def world_bounds(world: WorldDescription) -> tuple[float, float, float, float]:

@@ -1,6 +1,6 @@
 """The simulator's Gazebo-style sensors and plugins on the graph: one node each.
 
-Each class wires one parsed ``<gazebo>`` block (:mod:`visnav.sim.gazebo`) to
+Each class wires one parsed ``<gazebo>`` block (:mod:`visnav.description.gazebo`) to
 topics the way its ``gazebo_ros`` plugin does; :class:`~visnav.sim.simulator.Simulator`
 creates them. Per physics step ``k`` (sim time ``t = k * dt``) the simulator calls,
 in this order:
@@ -24,7 +24,6 @@ never receive.)
 
 from __future__ import annotations
 
-import math
 import time
 from collections import deque
 from typing import TYPE_CHECKING, Any
@@ -35,6 +34,7 @@ from rosbags.typesys.stores.ros2_humble import (
     trajectory_msgs__msg__MultiDOFJointTrajectory as MultiDOFJointTrajectory,
 )
 
+from visnav.description.rigid import matrix_to_quat_xyzw, quat_xyzw_to_matrix, rpy_to_matrix
 from visnav.graph.qos import DurabilityPolicy, QoSProfile
 from visnav.msgs.time import duration_to_ns, ns_to_time
 from visnav.msgs.types import (
@@ -50,28 +50,24 @@ from visnav.msgs.types import (
     PoseStamped,
     PoseWithCovariance,
     Quaternion,
-    String,
     Transform,
     TransformStamped,
     Twist,
     TwistWithCovariance,
     Vector3,
 )
-from visnav.sim._rigid import matrix_to_quat_xyzw, quat_xyzw_to_matrix, rpy_to_matrix
-from visnav.sim.robot_state import RobotStateError
 from visnav.sim.sensor_timing import SensorClock
 from visnav.sim.vehicles._state import BodyReader
 from visnav.sim.vehicles.quadrotor import PositionCommand
-from visnav.tf.ros import StaticTransformBroadcaster, TransformBroadcaster
+from visnav.tf.ros import TransformBroadcaster
+from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from numpy.typing import NDArray
 
-    from visnav.graph.node import Node
-    from visnav.sim.camera import CameraSensor
-    from visnav.sim.gazebo_specs import (
+    from visnav.description.gazebo_specs import (
         CameraSpec,
         DiffDriveSpec,
         GaussianNoise,
@@ -80,9 +76,11 @@ if TYPE_CHECKING:
         OdometrySpec,
         QuadrotorSpec,
     )
-    from visnav.sim.robot_state import RobotStateModel
+    from visnav.graph.node import Node
+    from visnav.sim.camera import CameraSensor
     from visnav.sim.vehicles.diff_drive import DiffDriveController
     from visnav.sim.vehicles.quadrotor import QuadrotorController
+    from visnav.tf.robot_state import RobotStateModel
 
 __all__ = [
     "DEFAULT_QOS",
@@ -94,7 +92,6 @@ __all__ = [
     "JointStatePlugin",
     "OdometryPlugin",
     "QuadrotorPlugin",
-    "RobotStatePublisher",
     "MultiDOFJointTrajectory",
     "SimPlugin",
     "trajectory_point_command",
@@ -117,8 +114,11 @@ def _vector(v: Sequence[float] | NDArray[np.float64]) -> Vector3:
     return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
 
-def _yaw_of(q: Quaternion) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+def _command_yaw(q: Quaternion) -> float:
+    """Heading of a commanded orientation; an unset (all-zero) quaternion means heading 0."""
+    if q.x == 0.0 and q.y == 0.0 and q.z == 0.0 and q.w == 0.0:
+        return 0.0
+    return yaw_from_quaternion(q)
 
 
 class SimPlugin:
@@ -170,7 +170,9 @@ class CameraPlugin(SimPlugin):
     """``libgazebo_ros_camera.so`` (and the depth plugins): renders when due and publishes.
 
     An image and its camera_info share one header (stamp and frame_id). Rendering
-    happens only at the sensor's update rate.
+    happens only at the sensor's update rate, and only while something subscribes to
+    one of the camera's topics (as gazebo_ros_camera activates its sensor on connect):
+    a due frame nobody wants is counted in ``skipped`` and not rendered.
 
     Args:
         node: the plugin's node.
@@ -188,6 +190,8 @@ class CameraPlugin(SimPlugin):
         self.clock = SensorClock(spec.update_rate, start_ns=start_ns)
         self.render_ns = 0
         self.frames = 0
+        self.skipped = 0
+        self._wanted = (-1, True)  # (graph version, anyone subscribed)
 
         def pub(msg_type: type[Any], topic: str | None) -> Any:
             return node.create_publisher(msg_type, topic, SENSOR_QOS) if topic else None
@@ -198,10 +202,25 @@ class CameraPlugin(SimPlugin):
         self._depth = pub(Image, spec.depth_topic) if depth else None
         self._depth_info = pub(CameraInfo, spec.depth_info_topic) if depth else None
         self._points = pub(PointCloud2, spec.points_topic) if depth and spec.pointcloud else None
+        self._pubs = [
+            p
+            for p in (self._image, self._info, self._depth, self._depth_info, self._points)
+            if p is not None
+        ]
+
+    def wanted(self) -> bool:
+        """True when any of the camera's topics has a subscriber (checked on graph changes)."""
+        version = self.node.context.graph.version
+        if version != self._wanted[0]:
+            self._wanted = (version, any(p.get_subscription_count() > 0 for p in self._pubs))
+        return self._wanted[1]
 
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
-        """Measure at ``now_ns`` when due and publish."""
+        """Measure at ``now_ns`` when due and wanted, and publish."""
         if not self.clock.due(now_ns):
+            return
+        if not self.wanted():
+            self.skipped += 1
             return
         start = time.perf_counter_ns()
         frame = self.sensor.render(data, stamp_ns=now_ns)
@@ -550,7 +569,7 @@ def trajectory_point_command(
             if accel is not None
             else (0.0, 0.0, 0.0)
         ),
-        yaw=_yaw_of(transform.rotation),
+        yaw=_command_yaw(transform.rotation),
         yaw_dot=float(velocity.angular.z) if velocity is not None else 0.0,
     )
 
@@ -617,7 +636,7 @@ class QuadrotorPlugin(SimPlugin):
         self.set_command(
             PositionCommand.hold(
                 (float(p.x), float(p.y), float(p.z)),
-                _yaw_of(msg.pose.orientation),
+                _command_yaw(msg.pose.orientation),
                 stamp_ns=self._now_ns,
             )
         )
@@ -629,56 +648,3 @@ class QuadrotorPlugin(SimPlugin):
         while queue and queue[0][0] <= now_ns:
             self.controller.set_command(queue.popleft()[1])
         self.controller.step(data)
-
-
-# --------------------------------------------------------------------------- robot_state_publisher
-
-
-class RobotStatePublisher:
-    """robot_state_publisher: ``robot_description``, ``/tf_static`` once, ``/tf`` per JointState.
-
-    Args:
-        node: the node (``robot_state_publisher`` in the robot's namespace).
-        model: the robot's kinematics (with its frame prefix).
-        description: the URDF XML, published latched on ``robot_description``.
-        joint_states_topic: where joint states arrive.
-        stamp_ns: stamp of the static transforms.
-    """
-
-    def __init__(
-        self,
-        node: Node,
-        model: RobotStateModel,
-        description: str,
-        *,
-        joint_states_topic: str = "joint_states",
-        stamp_ns: int = 0,
-    ) -> None:
-        self.node = node
-        self.model = model
-        node.create_publisher(String, "robot_description", LATCHED_QOS).publish(
-            String(data=description)
-        )
-        self._static = StaticTransformBroadcaster(node)
-        statics = model.static_transforms(stamp_ns=stamp_ns)
-        if statics:
-            self._static.send_transform(statics)
-        self._tf = TransformBroadcaster(node)
-        self._sub = None
-        if model.moving_joints:
-            self._sub = node.create_subscription(
-                JointState, joint_states_topic, self._on_joint_states, DEFAULT_QOS
-            )
-
-    def _on_joint_states(self, msg: JointState) -> None:
-        try:
-            transforms = self.model.dynamic_transforms(msg)
-        except RobotStateError as exc:
-            self.node.get_logger().warning(f"dropped a JointState: {exc}")
-            return
-        if transforms:
-            self._tf.send_transform(transforms)
-
-    def close(self) -> None:
-        """Destroy the node."""
-        self.node.destroy_node()

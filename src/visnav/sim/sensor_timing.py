@@ -18,7 +18,7 @@ from __future__ import annotations
 import hashlib
 import math
 
-from visnav.errors import VisnavError
+from visnav.sim.errors import SensorTimingError
 
 __all__ = ["SensorClock", "sensor_seed"]
 
@@ -33,13 +33,13 @@ class SensorClock:
         start_ns: sim time of the first possible measurement.
 
     Raises:
-        VisnavError: a negative or non-finite rate.
+        SensorTimingError: a negative or non-finite rate.
     """
 
     def __init__(self, rate_hz: float, *, start_ns: int = 0) -> None:
         if not math.isfinite(rate_hz) or rate_hz < 0.0:
             msg = f"update_rate is {rate_hz!r}: expected a finite rate >= 0 Hz (0 = every step)"
-            raise VisnavError(msg)
+            raise SensorTimingError(msg)
         self.rate_hz = float(rate_hz)
         self.period_ns = 0 if rate_hz == 0.0 else max(1, round(_NS_PER_S / rate_hz))
         self._next_ns = int(start_ns)

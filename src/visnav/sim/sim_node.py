@@ -14,12 +14,22 @@ Parameters (ROS names; all optional):
 ``realtime``        ``true``         pace sim time to the wall clock
 ``real_time_factor`` ``1.0``         target sim / wall ratio when ``realtime``
 ``duration``        ``0.0``          sim seconds to run; 0: until shutdown
+``contact_rate``    ``0.0``          Hz: each robot's contacts on ``bumper_states``; 0: off
+``lockstep``        ``false``        a launch drives the shared process lock-step (below)
 ==================  ===============  =====================================================
+
+``require_wheel_odometry`` (default false) refuses a robot whose odometry is not from wheel
+encoders (no diff drive, or its ``odometry_source`` world, i.e. ground truth like p3d), with
+the plugin element to set: SLAM in the loop has nothing to correct without it.
 
 Two ways to drive it:
 
 * :meth:`SimulatorNode.spin` runs the simulation as the context's executor loop:
   lock-step, every step followed by the ready callbacks (what ``visnav sim`` does);
+* :meth:`SimulatorNode.run_lockstep` does the same a slice at a time: a launch whose
+  shared ``sim`` node has ``lockstep: true`` is driven by it (the scenario launch files
+  are), so every shared node reacts at the sim time of each step and a seed gives the
+  same run; the launch ends when ``duration`` is over;
 * under a plain ``context.spin()`` (a launch process), a steady-clock timer advances
   the simulation in batches (catching up with the wall clock when ``realtime``,
   else about 10 ms of work per batch) and the executor delivers the messages between
@@ -33,27 +43,25 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-from visnav.errors import VisnavError
+from visnav.description.world import load_world
 from visnav.graph.clock import Clock, ClockType
-from visnav.graph.context import Context
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.safe_yaml import load_yaml
+from visnav.sim.errors import SimulatorNodeError
 from visnav.sim.guards import SimulationUnstableError
 from visnav.sim.simulator import RobotSpawn, SimStats, Simulator
-from visnav.sim.world import load_world
 
-__all__ = ["SimulatorNode", "SimulatorNodeError"]
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
+__all__ = ["SimulatorNode", "SimulatorNodeError", "check_wheel_odometry"]
 
 _LOG = logging.getLogger("visnav.sim")
 _BATCH_WALL_S = 0.01  # work per timer callback when not pacing to the wall clock
 _MAX_CATCH_UP_S = 0.1  # sim seconds at most per timer callback when pacing
-
-
-class SimulatorNodeError(VisnavError, ValueError):
-    """A simulator node parameter is malformed."""
 
 
 def _assignments(values: Sequence[Any], parameter: str) -> dict[str, str]:
@@ -67,12 +75,43 @@ def _assignments(values: Sequence[Any], parameter: str) -> dict[str, str]:
     return out
 
 
+def check_wheel_odometry(sim: Simulator) -> None:
+    """Refuse a robot whose odometry is not from wheel encoders (SLAM in the loop needs it).
+
+    Raises:
+        SimulatorNodeError: no diff drive plugin, or one with ``odometry_source`` world
+            (ground truth, like a p3d plugin); the text names the plugin element to set.
+    """
+    robot = sim.robot()
+    drives = robot.description.gazebo.diff_drives
+    if not drives:
+        msg = (
+            f"robot {robot.name!r} has no libgazebo_ros_diff_drive.so plugin, so no wheel "
+            "odometry (odom -> base) for SLAM in the loop to correct (a p3d plugin is ground "
+            'truth). Fix: add a <gazebo><plugin filename="libgazebo_ros_diff_drive.so"> with '
+            "<odometry_source>0</odometry_source> (encoder), or set require_wheel_odometry false"
+        )
+        raise SimulatorNodeError(msg)
+    drive = drives[0]
+    if drive.odometry_source != "encoder":
+        msg = (
+            f"robot {robot.name!r}: plugin {drive.plugin_name!r} (libgazebo_ros_diff_drive.so) "
+            f"has odometry_source {drive.odometry_source} (ground truth, like the p3d plugin) but "
+            "SLAM in the loop needs wheel-encoder odometry to correct. Fix: set "
+            "<odometry_source>0</odometry_source> (ROS 1: "
+            "<odometrySource>encoder</odometrySource>) in that plugin (the car: "
+            "ideal_sensors:=false), or run with --ideal-sensors"
+        )
+        raise SimulatorNodeError(msg)
+
+
 class SimulatorNode(Node):
     """A node that owns a :class:`~visnav.sim.simulator.Simulator` (see the module docstring).
 
     Args:
-        node_name: the node's name (launch files usually call it ``sim``).
-        context: the graph context; the simulator's nodes join it.
+        name: the node's name (launch files usually call it ``sim``).
+        **node_kwargs: :class:`~visnav.graph.Node`'s keyword parameters; the simulator's
+            nodes join its ``context``.
         **node_kwargs: passed to :class:`~visnav.graph.Node` (namespace,
             parameter_overrides, remappings).
 
@@ -80,10 +119,8 @@ class SimulatorNode(Node):
         VisnavError: a bad parameter, world or robot (one line naming it).
     """
 
-    def __init__(
-        self, node_name: str = "sim", *, context: Context | None = None, **node_kwargs: Any
-    ) -> None:
-        super().__init__(node_name, context=context, **node_kwargs)
+    def __init__(self, name: str = "sim", **node_kwargs: Unpack[NodeOptions]) -> None:
+        super().__init__(name, **node_kwargs)
         try:
             self.sim = self._build()
         except BaseException:
@@ -97,6 +134,7 @@ class SimulatorNode(Node):
     def _build(self) -> Simulator:
         p = self._parameters()
         self.duration_s = float(p["duration"])
+        self.lockstep = bool(p["lockstep"])
         seed = int(p["seed"])
         spawn = [float(v) for v in p["spawn"]]
         if spawn and len(spawn) != 4:
@@ -118,7 +156,7 @@ class SimulatorNode(Node):
             namespace=str(p["robot_namespace"]),
             frame_prefix=str(p["frame_prefix"]),
         )
-        return Simulator(
+        sim = Simulator(
             world,
             [robot],
             context=self.context,
@@ -126,7 +164,15 @@ class SimulatorNode(Node):
             realtime=bool(p["realtime"]),
             real_time_factor=float(p["real_time_factor"]),
             node=self,
+            contact_rate=float(p["contact_rate"]),
         )
+        if bool(p["require_wheel_odometry"]):
+            try:
+                check_wheel_odometry(sim)
+            except SimulatorNodeError:
+                sim.close()
+                raise
+        return sim
 
     def _parameters(self) -> Mapping[str, Any]:
         defaults: dict[str, Any] = {
@@ -141,6 +187,9 @@ class SimulatorNode(Node):
             "realtime": True,
             "real_time_factor": 1.0,
             "duration": 0.0,
+            "contact_rate": 0.0,
+            "lockstep": False,
+            "require_wheel_odometry": False,
         }
         values = {name: self.declare_parameter(name, d).value for name, d in defaults.items()}
         # array defaults carry a typed placeholder; an untouched one means "empty"
@@ -181,6 +230,27 @@ class SimulatorNode(Node):
         stop = time.perf_counter() + _BATCH_WALL_S
         while time.perf_counter() < stop and not self._done():
             sim.step(1, spin=False)
+
+    def run_lockstep(self, slice_s: float, *, until: Callable[[], bool] | None = None) -> bool:
+        """Advance lock-step (as :meth:`spin`) by at most ``slice_s`` simulated seconds.
+
+        Call it from the thread that owns the context, not from a callback.
+
+        Args:
+            slice_s: sim seconds to advance at most.
+            until: stop early as soon as this returns True (checked before every step).
+
+        Returns:
+            False once ``duration`` is over (or the context is shut down), else True.
+        """
+        self._timer.cancel()
+        if self._done() or not self.context.ok:
+            return False
+        left = slice_s
+        if self.duration_s > 0:
+            left = min(left, self.duration_s - (self.sim.now_ns - self._sim0) * 1e-9)
+        self.sim.run(max(left, 0.0), until=until)
+        return not self._done() and self.context.ok
 
     def spin(self) -> SimStats:
         """Run the simulation lock-step as this context's executor loop.

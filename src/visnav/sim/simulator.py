@@ -44,127 +44,55 @@ absolute remappings.
 
 from __future__ import annotations
 
-import difflib
 import logging
 import math
 import os
-import re
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from visnav.errors import VisnavError
+from visnav.description.robot import RobotDescription
+from visnav.description.robots import resolve_robot
+from visnav.description.world import WorldDescription, load_world
 from visnav.graph.context import Context
 from visnav.graph.node import Node
 from visnav.graph.qos import QoSProfile
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Clock
-from visnav.sim.camera import CameraSensor, RenderContext, render_layout
-from visnav.sim.gazebo_specs import CameraSpec
+from visnav.sim.camera import RenderContext, render_layout
+from visnav.sim.contact_sensor import ContactSensor
+from visnav.sim.errors import SimulatorError
 from visnav.sim.guards import InstabilityMonitor, check_spawn_pose, route_mujoco_warnings
-from visnav.sim.plugins import (
-    CameraPlugin,
-    DiffDrivePlugin,
-    ImuPlugin,
-    JointStatePlugin,
-    OdometryPlugin,
-    QuadrotorPlugin,
-    RobotStatePublisher,
-    SimPlugin,
+from visnav.sim.plugin_factories import (
+    RobotBuild,
+    build_plugins,
+    node_name,
+    publishes,
+    push_namespace,
 )
-from visnav.sim.robot import RobotDescription, RobotHandles, add_robot_to_spec, load_robot
-from visnav.sim.robot_state import RobotStateModel
-from visnav.sim.sensor_timing import SensorClock, sensor_seed
-from visnav.sim.urdf import RobotDescriptionError
-from visnav.sim.vehicles.car import car_description_path
-from visnav.sim.vehicles.diff_drive import DiffDriveController
-from visnav.sim.vehicles.quadrotor import (
-    PositionCommand,
-    QuadrotorController,
-    QuadrotorParams,
-    quadrotor_description_path,
-)
-from visnav.sim.world import WorldDescription, build_world_spec, load_world
+from visnav.sim.plugins import CameraPlugin, QuadrotorPlugin, SimPlugin
+from visnav.sim.robot import RobotHandles, add_robot_to_spec
+from visnav.sim.sensor_timing import SensorClock
+from visnav.sim.vehicles.quadrotor import PositionCommand
+from visnav.sim.world_spec import build_world_spec
+from visnav.tf.robot_state import RobotStateModel
+from visnav.tf.robot_state_node import RobotStatePublisher
 
 __all__ = [
-    "BUILTIN_ROBOTS",
     "RobotSpawn",
     "SimRobot",
     "SimStats",
     "Simulator",
     "SimulatorError",
-    "builtin_robot_names",
-    "resolve_robot",
 ]
 
-BUILTIN_ROBOTS: Mapping[str, Callable[[], Path]] = {
-    "car": car_description_path,
-    "quadrotor": quadrotor_description_path,
-}
-"""Built-in robot name -> the function returning its Xacro file."""
-
-_ROBOT_SUFFIXES = (".urdf", ".xacro", ".xml")
-_NODE_NAME = re.compile(r"[^A-Za-z0-9_]")
 _CLOCK_QOS = QoSProfile(depth=1)
 _MAX_BACKLOG_NS = 100_000_000  # realtime: wall-clock lag dropped instead of caught up
 _LOG = logging.getLogger("visnav.sim")
-
-
-class SimulatorError(VisnavError, ValueError):
-    """The simulation cannot be built from the given world and robots."""
-
-
-def builtin_robot_names() -> tuple[str, ...]:
-    """Names of the built-in robots."""
-    return tuple(sorted(BUILTIN_ROBOTS))
-
-
-def resolve_robot(
-    source: str | os.PathLike[str] | RobotDescription,
-    *,
-    args: Mapping[str, str] | None = None,
-    packages: Mapping[str, Path | str] | None = None,
-) -> RobotDescription:
-    """Load a robot from a built-in name, a URDF / Xacro file or XML text.
-
-    Args:
-        source: ``car``, ``quadrotor``, a file path, URDF XML, or a loaded description.
-        args: Xacro ``name:=value`` arguments.
-        packages: package name -> directory for ``package://`` and ``$(find pkg)``.
-
-    Raises:
-        RobotDescriptionError: an unknown name (with the closest built-in name), a
-            missing file or an invalid description.
-    """
-    if isinstance(source, RobotDescription):
-        return source
-    text = os.fspath(source)
-    if text.lstrip().startswith("<"):
-        return load_robot(text, args=args, packages=packages)
-    path = Path(text)
-    looks_like_file = path.suffix.lower() in _ROBOT_SUFFIXES or os.sep in text or path.exists()
-    if not looks_like_file:
-        maker = BUILTIN_ROBOTS.get(text)
-        if maker is None:
-            close = difflib.get_close_matches(text, list(BUILTIN_ROBOTS), n=1, cutoff=0.5)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            msg = (
-                f"unknown robot {text!r}{hint} Built-in robots: {', '.join(builtin_robot_names())}"
-                "; or give the path of a .urdf / .urdf.xacro file"
-            )
-            raise RobotDescriptionError(msg)
-        return load_robot(maker(), args=args, packages=packages)
-    if not path.is_file():
-        msg = (
-            f"robot file {text!r} does not exist (built-in robots: "
-            f"{', '.join(builtin_robot_names())})"
-        )
-        raise RobotDescriptionError(msg)
-    return load_robot(path, args=args, packages=packages)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -265,17 +193,6 @@ def _namespace(ns: str) -> str:
     return "/" + stripped if stripped else "/"
 
 
-def _push(ns: str, topic: str | None) -> str | None:
-    if topic is None or ns == "/":
-        return topic
-    return ns + "/" + topic.lstrip("/")
-
-
-def _node_name(text: str) -> str:
-    name = _NODE_NAME.sub("_", text) or "plugin"
-    return name if not name[0].isdigit() else "_" + name
-
-
 def _default_spawn(world: WorldDescription) -> tuple[float, float, float]:
     meta = world.metadata
     spawn = meta.get("spawn")
@@ -297,8 +214,8 @@ class Simulator:
     """A MuJoCo world with robots whose sensors and plugins publish on the graph.
 
     Args:
-        world: a :class:`~visnav.sim.world.WorldDescription`, a built-in world name or
-            a world file (:func:`~visnav.sim.world.load_world`).
+        world: a :class:`~visnav.description.world.WorldDescription`, a built-in world name or
+            a world file (:func:`~visnav.description.world.load_world`).
         robots: the robots (:class:`RobotSpawn`, or just a source each).
         context: the graph context; every simulator node is created in it, so
             in-process subscribers get messages without copies.
@@ -311,6 +228,8 @@ class Simulator:
             MuJoCo's default 4 costs about as much again in software GL).
         node: the node that publishes ``/clock`` (default: a new node ``sim``, destroyed
             by :meth:`close`).
+        contact_rate: > 0: each robot publishes its contacts on ``<namespace>/bumper_states``
+            at this rate (Hz of sim time; :mod:`visnav.sim.contact_sensor`).
 
     Raises:
         SimulatorError: MuJoCo rejects the composed model, or a plugin does not fit it.
@@ -330,6 +249,7 @@ class Simulator:
         clock_rate: float = 0.0,
         msaa_samples: int = 0,
         node: Node | None = None,
+        contact_rate: float = 0.0,
     ) -> None:
         if not (math.isfinite(real_time_factor) and real_time_factor > 0):
             msg = f"real_time_factor is {real_time_factor}: expected a positive number"
@@ -364,7 +284,7 @@ class Simulator:
         self._pace_ref = (0, 0)
         self._closed = False
         self.robots: list[SimRobot] = []
-        cameras = [c for desc, *_ in placed for c in desc.gazebo.cameras if _publishes(c)]
+        cameras = [c for desc, *_ in placed for c in desc.gazebo.cameras if publishes(c)]
         if cameras:
             layouts = [render_layout(c, with_maps=False) for c in cameras]
             self._render_ctx = RenderContext(
@@ -372,6 +292,7 @@ class Simulator:
                 max_width=max(layout.width for layout in layouts),
                 max_height=max(layout.height for layout in layouts),
             )
+        self._contact_rate = float(contact_rate)  # > 0: each robot's bumper_states topic
         self._owns_node = node is None
         self._node = node if node is not None else Node("sim", context=context)
         self._clock_pub = self._node.create_publisher(Clock, "/clock", _CLOCK_QOS)
@@ -398,7 +319,7 @@ class Simulator:
         default_xy_yaw = _default_spawn(self.world)
         for spawn in spawns:
             desc = resolve_robot(spawn.source, args=spawn.args, packages=spawn.packages)
-            base = _node_name(spawn.name or desc.name)
+            base = node_name(spawn.name or desc.name)
             name, k = base, 2
             while name in used:
                 name, k = f"{base}_{k}", k + 1
@@ -444,129 +365,31 @@ class Simulator:
     ) -> SimRobot:
         ns = _namespace(spawn.namespace)
         prefix = spawn.frame_prefix
-        links = desc.urdf.links
-        model = self.model
         robot = SimRobot(name, desc, handles, ns, prefix)
-
-        def frame(f: str) -> str:
-            return f if f.lstrip("/") in ("world", "map") or not prefix else prefix + f
-
-        def node(label: str) -> Node:
-            return Node(_node_name(label), namespace=ns, context=self.context)
-
-        def seed_of(label: str) -> int:
-            return sensor_seed(self.seed, f"{name}/{label}")
-
         state_model = RobotStateModel(desc.urdf, frame_prefix=prefix)
-        gz = desc.gazebo
-        cameras = [c for c in gz.cameras if _publishes(c)]
-        for cam in cameras:
-            cam_spec = replace(
-                cam,
-                frame_id=frame(cam.frame_id),
-                image_topic=_push(ns, cam.image_topic),
-                camera_info_topic=_push(ns, cam.camera_info_topic),
-                depth_topic=_push(ns, cam.depth_topic),
-                depth_info_topic=_push(ns, cam.depth_info_topic),
-                points_topic=_push(ns, cam.points_topic),
-            )
-            sensor = CameraSensor(
-                model,
-                cam_spec,
-                camera=handles.cameras[cam.name],
-                seed=seed_of(cam.name),
-                context=self._render_ctx,
-            )
-            plugin = CameraPlugin(node(cam.plugin_name or cam.name), cam_spec, sensor)
-            self._cameras.append(plugin)
-            robot.plugins.append(plugin)
-        for imu in gz.imus:
-            if imu.topic is None:
-                continue
-            imu_spec = replace(imu, topic=_push(ns, imu.topic), frame_id=frame(imu.frame_id))
-            robot.plugins.append(
-                ImuPlugin(
-                    node(imu.plugin_name or imu.name),
-                    imu_spec,
-                    model,
-                    handles.imu_sensors[imu.name],
-                    rng=np.random.default_rng(seed_of(imu.name)),
-                )
-            )
-        for odom in gz.odometry:
-            reference = None
-            if odom.frame_id in links and odom.frame_id != "world":
-                reference = model.body(handles.bodies[odom.frame_id]).id
-            odom_spec = replace(
-                odom,
-                topic=_push(ns, odom.topic) or odom.topic,
-                frame_id=frame(odom.frame_id),
-                child_frame_id=frame(odom.child_frame_id),
-            )
-            robot.plugins.append(
-                OdometryPlugin(
-                    node(odom.plugin_name),
-                    odom_spec,
-                    model,
-                    body=model.body(handles.bodies[odom.body_name]).id,
-                    reference=reference,
-                    rng=np.random.default_rng(seed_of(odom.plugin_name)),
-                )
-            )
-        for drive in gz.diff_drives:
-            base_link = (
-                drive.robot_base_frame if drive.robot_base_frame in links else desc.urdf.root
-            )
-            drive_spec = replace(
-                drive,
-                command_topic=_push(ns, drive.command_topic) or drive.command_topic,
-                odometry_topic=_push(ns, drive.odometry_topic) or drive.odometry_topic,
-                odometry_frame=frame(drive.odometry_frame),
-                robot_base_frame=frame(drive.robot_base_frame),
-            )
-            controller = DiffDriveController(
-                model,
-                drive_spec,
-                base_body=handles.bodies[base_link],
-                prefix=f"{name}/",
-                seed=seed_of(drive.plugin_name),
-            )
-            wheels = [
-                (j, int(model.joint(handles.joints[j]).qposadr[0]))
-                for j in (*drive.left_joints, *drive.right_joints)
-            ]
-            robot.plugins.append(
-                DiffDrivePlugin(
-                    node(drive.plugin_name),
-                    drive_spec,
-                    controller,
-                    wheels=wheels,
-                    robot_state=state_model,
-                )
-            )
-        joint_topic = _push(ns, "/joint_states") or "/joint_states"
-        covered: set[str] = set()
-        for jsp in gz.joint_state_publishers:
-            joints = [(j, handles.joints[j]) for j in jsp.joints if j in handles.joints]
-            covered.update(j for j, _ in joints)
-            jsp_spec = replace(jsp, topic=_push(ns, jsp.topic) or jsp.topic)
-            joint_topic = jsp_spec.topic
-            robot.plugins.append(JointStatePlugin(node(jsp.plugin_name), jsp_spec, model, joints))
-        for quad in gz.quadrotors:
-            quad_spec = replace(
-                quad,
-                trajectory_topic=_push(ns, quad.trajectory_topic) or quad.trajectory_topic,
-                pose_topic=_push(ns, quad.pose_topic) or quad.pose_topic,
-            )
-            controller_q = QuadrotorController(
-                model,
-                body=handles.bodies[quad.body_name],
-                params=QuadrotorParams.from_plugin_params(dict(quad.parameters)),
-                seed=seed_of(quad.plugin_name),
-            )
-            robot.quadrotor = QuadrotorPlugin(node(quad.plugin_name), quad_spec, controller_q)
-            robot.plugins.append(robot.quadrotor)
-        missing = [j for j in state_model.moving_joints if j not in covered]
+        build = RobotBuild(
+            model=self.model,
+            context=self.context,
+            name=name,
+            description=desc,
+            handles=handles,
+            namespace=ns,
+            frame_prefix=prefix,
+            seed=self.seed,
+            state_model=state_model,
+            render_context=self._render_ctx,
+            joint_states_topic=push_namespace(ns, "/joint_states") or "/joint_states",
+        )
+        try:
+            robot.plugins.extend(build_plugins(build))
+        finally:
+            self._cameras.extend(build.cameras)
+            robot.quadrotor = build.quadrotor
+        if self._contact_rate > 0:
+            root = self.model.body(handles.root_body).id
+            sensor = ContactSensor(build.node("bumper"), self.model, root, self._contact_rate)
+            robot.plugins.append(sensor)
+        missing = [j for j in state_model.moving_joints if j not in build.covered_joints]
         if missing:
             _LOG.warning(
                 "robot %r: moving joints %s are in no libgazebo_ros_joint_state_publisher.so "
@@ -575,10 +398,10 @@ class Simulator:
                 missing,
             )
         robot.robot_state = RobotStatePublisher(
-            node("robot_state_publisher"),
+            build.node("robot_state_publisher"),
             state_model,
             desc.xml,
-            joint_states_topic=joint_topic,
+            joint_states_topic=build.joint_states_topic,
             stamp_ns=self._now_ns,
         )
         return robot
@@ -768,11 +591,6 @@ class Simulator:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _publishes(camera: CameraSpec) -> bool:
-    """Whether a camera has a ROS plugin (a sensor without one publishes nothing)."""
-    return bool(camera.image_topic or camera.depth_topic or camera.points_topic)
 
 
 def _is_descendant(model: mujoco.MjModel, body: int, root: int) -> bool:

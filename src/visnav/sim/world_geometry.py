@@ -1,6 +1,6 @@
 """Ground truth from a world's geometry: obstacle distance and a 2D occupancy grid.
 
-Both work on the collision shapes of a :class:`~visnav.sim.worldmodel.WorldDescription`
+Both work on the collision shapes of a :class:`~visnav.description.worldmodel.WorldDescription`
 analytically (boxes, cylinders and spheres exactly, in any orientation; meshes
 through their bounding box, which contains them) and are vectorised with numpy.
 They are the reference that acceptance metrics compare maps and flights against.
@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from visnav.sim.worldmodel import Box, Cylinder, Mesh, Sphere, WorldError
+from visnav.description.worldmodel import Box, Cylinder, Mesh, Sphere, WorldError
 
 if TYPE_CHECKING:
     import numpy.typing as npt
 
-    from visnav.sim.worldmodel import Shape, WorldDescription
+    from visnav.description.worldmodel import Shape, WorldDescription
 
 __all__ = ["obstacle_distance", "shape_aabb", "shape_signed_distance", "true_occupancy_grid"]
 

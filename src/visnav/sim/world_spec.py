@@ -1,12 +1,11 @@
-"""A :class:`~visnav.sim.worldmodel.WorldDescription` as a ``mujoco.MjSpec``."""
+"""A :class:`~visnav.description.worldmodel.WorldDescription` as a ``mujoco.MjSpec``."""
 
 from __future__ import annotations
 
 import math
 from typing import TYPE_CHECKING
 
-from visnav.sim.textures import noise_image
-from visnav.sim.worldmodel import (
+from visnav.description.worldmodel import (
     Box,
     Cylinder,
     Material,
@@ -16,6 +15,7 @@ from visnav.sim.worldmodel import (
     WorldDescription,
     rpy_to_quat_wxyz,
 )
+from visnav.sim.textures import noise_image
 
 if TYPE_CHECKING:
     import mujoco

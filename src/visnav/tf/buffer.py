@@ -43,9 +43,7 @@ import difflib
 import logging
 import math
 import threading
-import time as _time
-from collections.abc import Callable
-from typing import Any, Literal, overload
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,13 +65,13 @@ from visnav.tf._buffer_io import (
     to_ns,
 )
 from visnav.tf._cache import FrameCache
+from visnav.tf._can_transform import CanTransformMixin
 from visnav.tf._plan import Plan, SideFn, build_plan, latest_time, make_side, run_plan, side
 from visnav.tf._scalar import IDENTITY, Pose7
 from visnav.tf._tree import fmt_time, latest_common_time, walk
 from visnav.tf.errors import (
     InvalidArgumentException,
     LookupException,
-    TransformException,
 )
 from visnav.tf.geometry import transform_full_object, transform_object
 
@@ -86,7 +84,7 @@ _NS_PER_S = 1_000_000_000
 _QUATERNION_NORMALIZATION_TOLERANCE = 10e-3
 
 
-class Buffer:
+class Buffer(CanTransformMixin):
     """Stores stamped transforms and looks up ``T_target_source`` at any stored time.
 
     Args:
@@ -459,109 +457,6 @@ class Buffer:
             new_type=new_type,
         )
 
-    @overload
-    def can_transform(
-        self,
-        target_frame: str,
-        source_frame: str,
-        time_ns: TimeLike = 0,
-        *,
-        timeout: float | Duration = 0.0,
-        return_debug_tuple: Literal[False] = False,
-    ) -> bool: ...
-
-    @overload
-    def can_transform(
-        self,
-        target_frame: str,
-        source_frame: str,
-        time_ns: TimeLike = 0,
-        *,
-        timeout: float | Duration = 0.0,
-        return_debug_tuple: Literal[True],
-    ) -> tuple[bool, str]: ...
-
-    def can_transform(
-        self,
-        target_frame: str,
-        source_frame: str,
-        time_ns: TimeLike = 0,
-        *,
-        timeout: float | Duration = 0.0,
-        return_debug_tuple: bool = False,
-    ) -> bool | tuple[bool, str]:
-        """Tell whether :meth:`lookup_transform` would succeed; never raises for frame problems.
-
-        Args:
-            target_frame: the frame to transform into.
-            source_frame: the frame to transform from.
-            time_ns: as in :meth:`lookup_transform`.
-            timeout: wall-clock seconds to wait for the transform (0: answer now).
-            return_debug_tuple: return ``(ok, reason)`` (reason is "" when ok), as rclpy.
-
-        Returns:
-            ``ok``, or ``(ok, reason)``.
-
-        Raises:
-            InvalidArgumentException: a malformed time or timeout.
-        """
-        t = to_ns(time_ns, "time")
-        if timeout:
-            ok, reason = self._wait(target_frame, source_frame, t, timeout_s(timeout))
-        else:
-            with self._lock:
-                ok, reason = self._check(target_frame, source_frame, t)
-        return (ok, reason) if return_debug_tuple else ok
-
-    @overload
-    def can_transform_full(
-        self,
-        target_frame: str,
-        target_time: TimeLike,
-        source_frame: str,
-        source_time: TimeLike,
-        fixed_frame: str,
-        *,
-        timeout: float | Duration = 0.0,
-        return_debug_tuple: Literal[False] = False,
-    ) -> bool: ...
-
-    @overload
-    def can_transform_full(
-        self,
-        target_frame: str,
-        target_time: TimeLike,
-        source_frame: str,
-        source_time: TimeLike,
-        fixed_frame: str,
-        *,
-        timeout: float | Duration = 0.0,
-        return_debug_tuple: Literal[True],
-    ) -> tuple[bool, str]: ...
-
-    def can_transform_full(
-        self,
-        target_frame: str,
-        target_time: TimeLike,
-        source_frame: str,
-        source_time: TimeLike,
-        fixed_frame: str,
-        *,
-        timeout: float | Duration = 0.0,
-        return_debug_tuple: bool = False,
-    ) -> bool | tuple[bool, str]:
-        """Tell whether :meth:`lookup_transform_full` would succeed (arguments as there)."""
-        tt = to_ns(target_time, "target_time")
-        ts = to_ns(source_time, "source_time")
-        if timeout:
-            ok, reason = self._wait_full(
-                target_frame, tt, source_frame, ts, fixed_frame, timeout_s(timeout)
-            )
-        else:
-            with self._lock:
-                ok, reason = self._check_full(target_frame, tt, source_frame, ts, fixed_frame)
-        return (ok, reason) if return_debug_tuple else ok
-
     # ------------------------------------------------------------------ introspection
 
     def get_frames(self) -> list[str]:
@@ -697,48 +592,3 @@ class Buffer:
         fixed_source, _ = self._lookup(fixed, source, ts)
         target_fixed, resolved = self._lookup(target, fixed, tt)
         return _scalar.compose(target_fixed, fixed_source), resolved
-
-    def _check(self, target: str, source: str, t: int) -> tuple[bool, str]:
-        return self._probe(lambda: self._lookup(target, source, t))
-
-    def _check_full(
-        self, target: str, tt: int, source: str, ts: int, fixed: str
-    ) -> tuple[bool, str]:
-        return self._probe(lambda: self._lookup_full(target, tt, source, ts, fixed))
-
-    @staticmethod
-    def _probe(lookup: Callable[[], object]) -> tuple[bool, str]:
-        try:
-            lookup()
-        except TransformException as exc:
-            return False, str(exc)
-        return True, ""
-
-    def _wait(self, target: str, source: str, t: int, timeout_s: float) -> tuple[bool, str]:
-        return self._wait_for(lambda: self._lookup(target, source, t), timeout_s)
-
-    def _wait_full(
-        self, target: str, tt: int, source: str, ts: int, fixed: str, timeout_s: float
-    ) -> tuple[bool, str]:
-        return self._wait_for(lambda: self._lookup_full(target, tt, source, ts, fixed), timeout_s)
-
-    def _wait_for(self, lookup: Callable[[], object], timeout_s: float) -> tuple[bool, str]:
-        """Retry ``lookup`` on every insertion until it succeeds or ``timeout_s`` passes.
-
-        A malformed argument (InvalidArgumentException) cannot be cured by new data:
-        it is answered at once instead of after the whole timeout.
-        """
-        deadline = _time.monotonic() + timeout_s
-        with self._cond:
-            while True:
-                try:
-                    lookup()
-                except InvalidArgumentException as exc:
-                    return False, str(exc)
-                except TransformException as exc:
-                    remaining = deadline - _time.monotonic()
-                    if remaining <= 0.0:
-                        return False, str(exc)
-                    self._cond.wait(remaining)
-                else:
-                    return True, ""

@@ -33,6 +33,7 @@ __all__ = [
     "invert",
     "matrix_to_pose",
     "matrix_to_quaternion",
+    "matrix_from_euler",
     "matrix_to_transform",
     "matrix_to_translation_quaternion",
     "pose_to_matrix",
@@ -45,6 +46,8 @@ __all__ = [
     "transform_points",
     "transform_to_matrix",
     "translation_quaternion_to_matrix",
+    "yaw_from_matrix",
+    "yaw_from_quaternion",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -52,8 +55,17 @@ FloatArray = NDArray[np.float64]
 _ROTATION_TOLERANCE = 1e-6
 
 
+def _floats(value: object, name: str) -> FloatArray:
+    """``value`` as a float64 array, or InvalidArgumentException naming ``name``."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        msg = f"{name} is {value!r:.80}: expected numbers ({exc})"
+        raise InvalidArgumentException(msg) from exc
+
+
 def _as_vector(value: ArrayLike, size: int, name: str) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
+    arr = _floats(value, name)
     if arr.shape != (size,):
         msg = f"{name} has shape {arr.shape}: expected ({size},)"
         raise InvalidArgumentException(msg)
@@ -118,7 +130,7 @@ def matrix_to_quaternion(matrix: ArrayLike) -> FloatArray:
         InvalidArgumentException: wrong shape, non-finite, or not a rotation (R R^T != I,
             det != 1, tolerance 1e-6).
     """
-    m = np.asarray(matrix, dtype=np.float64)
+    m = _floats(matrix, "rotation matrix")
     if m.shape == (4, 4):
         m = m[:3, :3]
     if m.shape != (3, 3):
@@ -221,6 +233,103 @@ def euler_from_quaternion(q: ArrayLike) -> tuple[float, float, float]:
     return roll, pitch, yaw
 
 
+def matrix_from_euler(roll: float, pitch: float, yaw: float) -> FloatArray:
+    """Return the 3x3 rotation matrix of ROS roll, pitch, yaw (fixed axes x, then y, then z).
+
+    ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``: URDF's ``<origin rpy>``, tf2's ``Matrix3x3::setRPY``
+    and ``tf_transformations.euler_matrix(roll, pitch, yaw)`` (its 3x3 part).
+
+    Raises:
+        InvalidArgumentException: an angle is not finite.
+    """
+    r, p, y = float(roll), float(pitch), float(yaw)
+    if not (math.isfinite(r) and math.isfinite(p) and math.isfinite(y)):
+        msg = f"roll, pitch, yaw = ({roll}, {pitch}, {yaw}): expected finite angles in radians"
+        raise InvalidArgumentException(msg)
+    cr, sr = math.cos(r), math.sin(r)
+    cp, sp = math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def _xyzw(q: Quaternion | ArrayLike) -> tuple[float, float, float, float]:
+    """The 4 finite components of a quaternion message or sequence (fast for both)."""
+    name = "quaternion (x, y, z, w)"
+    if isinstance(q, Quaternion):
+        values: Any = (q.x, q.y, q.z, q.w)
+    elif isinstance(q, (tuple, list)) and len(q) == 4:
+        values = q
+    else:
+        values = _as_vector(q, 4, name).tolist()
+    try:
+        x, y, z, w = float(values[0]), float(values[1]), float(values[2]), float(values[3])
+    except (TypeError, ValueError) as exc:
+        msg = f"{name} is {values!r:.80}: expected 4 numbers ({exc})"
+        raise InvalidArgumentException(msg) from exc
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(w)):
+        msg = f"{name} is ({x}, {y}, {z}, {w}): expected finite values"
+        raise InvalidArgumentException(msg)
+    return x, y, z, w
+
+
+def yaw_from_quaternion(q: Quaternion | ArrayLike) -> float:
+    """Return the heading (yaw, radians in [-pi, pi]) of a quaternion.
+
+    The heading is the angle of the rotated x axis projected on the x-y plane,
+    ``atan2(R[1, 0], R[0, 0])``: the yaw of :func:`euler_from_quaternion` and of tf2's
+    ``tf2::getYaw`` away from gimbal lock. At ``|pitch| = pi/2`` the heading is undefined:
+    this returns the angle of the rounding residue (often 0) where tf2 moves the roll into
+    the yaw.
+
+    Args:
+        q: a ``geometry_msgs/Quaternion`` or 4 numbers x, y, z, w. A quaternion that is
+            not of unit length is used as the rotation it represents (its direction).
+
+    Raises:
+        InvalidArgumentException: not 4 finite numbers, or of zero length.
+    """
+    x, y, z, w = _xyzw(q)
+    n2 = x * x + y * y + z * z + w * w
+    if not math.isfinite(n2):  # finite components too large to square: scale them down
+        big = max(abs(x), abs(y), abs(z), abs(w))
+        x, y, z, w = x / big, y / big, z / big, w / big
+        n2 = x * x + y * y + z * z + w * w
+    if n2 < 1e-24:
+        msg = f"quaternion (x, y, z, w) ({x}, {y}, {z}, {w}) has zero length: it is not a rotation"
+        raise InvalidArgumentException(msg)
+    # R00 = n2 - 2 (y^2 + z^2) and R10 = 2 (x y + w z) for any scale; a unit quaternion
+    # (within rounding) uses 1 exactly so the result is bit-identical to the textbook form.
+    scale = 1.0 if abs(n2 - 1.0) < 1e-9 else n2
+    return math.atan2(2.0 * (w * z + x * y), scale - 2.0 * (y * y + z * z))
+
+
+def yaw_from_matrix(matrix: ArrayLike) -> float:
+    """Return the heading (yaw, radians) of a 3x3 rotation or 4x4 transform: ``atan2(R10, R00)``.
+
+    The same angle as :func:`yaw_from_quaternion` of the matrix's rotation; the matrix is
+    not checked for orthonormality (it is read, not inverted).
+
+    Raises:
+        InvalidArgumentException: not 3x3 or 4x4, or its entries ``R00``, ``R10`` are not
+            finite.
+    """
+    m = _floats(matrix, "rotation matrix")
+    if m.shape not in ((3, 3), (4, 4)):
+        msg = f"rotation matrix has shape {m.shape}: expected (3, 3) or (4, 4)"
+        raise InvalidArgumentException(msg)
+    r00, r10 = float(m[0, 0]), float(m[1, 0])
+    if not (math.isfinite(r00) and math.isfinite(r10)):
+        msg = f"rotation matrix has R00 = {r00}, R10 = {r10}: expected finite values"
+        raise InvalidArgumentException(msg)
+    return math.atan2(r10, r00)
+
+
 def translation_quaternion_to_matrix(translation: ArrayLike, quaternion: ArrayLike) -> FloatArray:
     """Return the 4x4 transform of a translation (3,) and a quaternion (x, y, z, w)."""
     t = _as_vector(translation, 3, "translation")
@@ -241,7 +350,7 @@ def check_transform_matrix(matrix: ArrayLike, *, name: str = "transform") -> Flo
         InvalidArgumentException: not 4x4, non-finite, last row not ``[0, 0, 0, 1]``, or a
             rotation part that is not orthonormal with determinant 1 (tolerance 1e-6).
     """
-    m = np.asarray(matrix, dtype=np.float64)
+    m = _floats(matrix, name)
     if m.shape != (4, 4):
         msg = f"{name} has shape {m.shape}: expected a (4, 4) homogeneous matrix"
         raise InvalidArgumentException(msg)
@@ -256,7 +365,7 @@ def check_transform_matrix(matrix: ArrayLike, *, name: str = "transform") -> Flo
 
 
 def _as_matrix(matrix: ArrayLike, name: str) -> FloatArray:
-    m = np.asarray(matrix, dtype=np.float64)
+    m = _floats(matrix, name)
     if m.shape != (4, 4):
         msg = f"{name} has shape {m.shape}: expected a (4, 4) homogeneous matrix"
         raise InvalidArgumentException(msg)

@@ -11,14 +11,17 @@ for the fixed frame only by the roslaunch import).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from visnav.graph.clock import Clock, ClockType
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.viz.sink import RerunSink
 from visnav.viz.sources import LiveFeed
 from visnav.viz.viewer import open_viewer
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = ["ViewerNode", "ViewerParams"]
 
@@ -36,8 +39,8 @@ class ViewerParams:
 class ViewerNode(Node):
     """Streams the graph to Rerun (see the module docstring)."""
 
-    def __init__(self, node_name: str = "viewer", **node_kwargs: Any) -> None:
-        super().__init__(node_name, **node_kwargs)
+    def __init__(self, name: str = "viewer", **node_kwargs: Unpack[NodeOptions]) -> None:
+        super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, ViewerParams)
         fixed, web, save = p.fixed_frame or None, p.web, p.save or None
         self.viewer = open_viewer(web=web, save=save)

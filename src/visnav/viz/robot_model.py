@@ -80,7 +80,7 @@ def parse_robot_description(text: str, *, source: str = "robot_description") -> 
     Raises:
         VizError: the text is not a valid URDF (the reader's message, naming ``source``).
     """
-    from visnav.sim.urdf import parse_urdf  # noqa: PLC0415 (moves to description/ later)
+    from visnav.description.urdf import parse_urdf  # noqa: PLC0415
 
     try:
         return parse_urdf(text, source=source)

@@ -63,9 +63,11 @@ from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 
-from visnav.errors import VisnavError
-from visnav.sim.noise_models import WheelEncoderModel, WheelOdometryNoise
+from visnav.description.noise_specs import WheelOdometryNoise
+from visnav.sim.errors import DiffDriveError
+from visnav.sim.noise_models import WheelEncoderModel
 from visnav.sim.vehicles._state import BodyReader
+from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -90,12 +92,8 @@ _MOTOR_GAIN = 0.9  # fraction of the one-step (deadbeat) velocity correction per
 _MOTOR_INTEGRAL_TIME = 0.05  # s, integral time of the wheel velocity servo
 
 
-class DiffDriveError(VisnavError, ValueError):
-    """A diff-drive configuration does not match the MuJoCo model."""
-
-
 class DiffDriveParameters(Protocol):
-    """What the controller reads; ``visnav.sim.gazebo.DiffDriveSpec`` satisfies it."""
+    """What the controller reads; ``visnav.description.gazebo.DiffDriveSpec`` satisfies it."""
 
     @property
     def left_joints(self) -> tuple[str, ...]:
@@ -253,8 +251,7 @@ class DiffDriveOdometry:
     @property
     def yaw(self) -> float:
         """Heading (rad) from the orientation."""
-        x, y, z, w = self.orientation
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        return yaw_from_quaternion(self.orientation)
 
     def to_msg(self) -> Odometry:
         """This sample as a ``nav_msgs/Odometry`` message."""
@@ -554,7 +551,7 @@ class DiffDriveController:
         body = self._reader.read(data)
         pos, angular, linear = body.position, body.angular, body.linear
         w, x, y, z = (float(v) for v in body.quat_wxyz)  # MuJoCo order w, x, y, z
-        yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        yaw = yaw_from_quaternion((x, y, z, w))
         c, s = math.cos(yaw), math.sin(yaw)
         return DiffDriveOdometry(
             stamp_ns=now_ns,

@@ -34,18 +34,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from importlib.resources import files
-from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from visnav.errors import VisnavError
+from visnav.description.vehicle_params import QuadrotorParams
+from visnav.sim.errors import QuadrotorError
 from visnav.sim.vehicles._state import BodyReader
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping
-
     import mujoco
     import numpy.typing as npt
 
@@ -58,16 +55,11 @@ __all__ = [
     "QuadrotorState",
     "SO3Gains",
     "add_quadrotor",
-    "quadrotor_description_path",
     "so3_control",
 ]
 
 Vec3 = tuple[float, float, float]
 GRAVITY = 9.81
-
-
-class QuadrotorError(VisnavError, ValueError):
-    """Invalid quadrotor parameters, or a model that does not fit the controller."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -124,74 +116,6 @@ class SO3Gains:
     kv: Vec3 = (3.5, 3.5, 4.1)
     kR: Vec3 = (400.0, 400.0, 100.0)  # noqa: N815  (the paper's name)
     kOm: Vec3 = (40.0, 40.0, 20.0)  # noqa: N815
-
-
-@dataclass(frozen=True, kw_only=True)
-class QuadrotorParams:
-    """Physical limits of the vehicle (mass and inertia come from the MuJoCo model).
-
-    Attributes:
-        max_thrust: Collective thrust limit (N).
-        max_moment: Body moment limits about x, y, z (N m).
-        max_tilt: Largest tilt of the commanded thrust from vertical (rad).
-        motor_time_constant: First-order lag of thrust and moments (s); 0 = none.
-        disturbance_std: Standard deviation of a random world-frame force applied
-            each physics step (N); drawn from a generator seeded by the controller.
-    """
-
-    max_thrust: float = 25.0
-    max_moment: Vec3 = (1.5, 1.5, 0.4)
-    max_tilt: float = math.radians(45.0)
-    motor_time_constant: float = 0.0
-    disturbance_std: float = 0.0
-
-    def __post_init__(self) -> None:
-        checks = (
-            ("max_thrust", (self.max_thrust,), "> 0 N"),
-            ("max_moment", self.max_moment, "> 0 N m"),
-        )
-        for name, values, expected in checks:
-            if not all(math.isfinite(v) and v > 0 for v in values):
-                msg = f"quadrotor: {name} must be {expected}, got {list(values)}"
-                raise QuadrotorError(msg)
-        if not 0 < self.max_tilt < math.pi / 2:
-            msg = f"quadrotor: max_tilt must be in (0, pi/2) rad, got {self.max_tilt}"
-            raise QuadrotorError(msg)
-        for name, value in (
-            ("motor_time_constant", self.motor_time_constant),
-            ("disturbance_std", self.disturbance_std),
-        ):
-            if not (math.isfinite(value) and value >= 0):
-                msg = f"quadrotor: {name} must be >= 0, got {value}"
-                raise QuadrotorError(msg)
-
-    @classmethod
-    def from_plugin_params(cls, params: Mapping[str, str]) -> QuadrotorParams:
-        """Read the ``<plugin filename="libvisnav_quadrotor.so">`` children (text values).
-
-        Recognised: ``max_thrust``, ``max_moment`` ("x y z"), ``max_tilt``,
-        ``motor_time_constant``, ``disturbance_std``. Unknown names raise.
-
-        Raises:
-            QuadrotorError: An unknown name or a value that is not a number.
-        """
-        known = {"max_thrust", "max_moment", "max_tilt", "motor_time_constant", "disturbance_std"}
-        kwargs: dict[str, object] = {}
-        for name, text in params.items():
-            if name not in known:
-                msg = f"quadrotor plugin: unknown parameter <{name}>; known: {sorted(known)}"
-                raise QuadrotorError(msg)
-            try:
-                values = [float(v) for v in text.split()]
-            except ValueError:
-                msg = f"quadrotor plugin: <{name}> must be numbers, got {text!r}"
-                raise QuadrotorError(msg) from None
-            expected = 3 if name == "max_moment" else 1
-            if len(values) != expected:
-                msg = f"quadrotor plugin: <{name}> needs {expected} number(s), got {text!r}"
-                raise QuadrotorError(msg)
-            kwargs[name] = tuple(values) if expected == 3 else values[0]
-        return cls(**kwargs)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -454,7 +378,7 @@ def add_quadrotor(
 ) -> str:
     """Add a quadrotor body (free joint, box body, four rotor discs) to a spec.
 
-    The same geometry as ``scenarios/robots/quadrotor.urdf.xacro``, without its
+    The same geometry as ``description/robots/quadrotor.urdf.xacro``, without its
     sensors, for tests and scripts that need a flying body without a URDF.
 
     Args:
@@ -506,13 +430,3 @@ def add_quadrotor(
             conaffinity=0,
         )
     return name
-
-
-def quadrotor_description_path() -> Path:
-    """Path of the built-in quadrotor's Xacro file (depth camera 640 x 480 at 20 Hz, p3d odometry).
-
-    Its root link ``base_link`` is the body to give :class:`QuadrotorController`;
-    its ``libvisnav_quadrotor.so`` block holds :class:`QuadrotorParams`
-    (:meth:`QuadrotorParams.from_plugin_params`).
-    """
-    return Path(str(files("visnav.scenarios") / "robots" / "quadrotor.urdf.xacro"))

@@ -1,0 +1,212 @@
+"""CameraInfo and point-array validation for :mod:`visnav.perception.camera_model` (internal).
+
+Checks a ``sensor_msgs/CameraInfo`` once and returns the normalized calibration the
+rectification maps depend on and the ROI; every problem is one
+:class:`~visnav.perception.errors.CameraModelError` naming the field, the value and what
+REP 104 expects.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from visnav.perception.errors import CameraModelError
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+
+    from visnav.msgs.types import CameraInfo
+
+__all__ = [
+    "DISTORTION_MODELS",
+    "EQUIDISTANT",
+    "PLUMB_BOB",
+    "RATIONAL_POLYNOMIAL",
+    "Calibration",
+    "Roi",
+    "RoiState",
+    "as_points",
+    "binned",
+    "parse_camera_info",
+    "shaped",
+]
+
+PLUMB_BOB = "plumb_bob"
+RATIONAL_POLYNOMIAL = "rational_polynomial"
+EQUIDISTANT = "equidistant"
+
+#: Distortion models this camera model applies, with the length REP 104 gives ``D``.
+DISTORTION_MODELS: dict[str, int] = {PLUMB_BOB: 5, RATIONAL_POLYNOMIAL: 8, EQUIDISTANT: 4}
+
+_COEFFICIENT_NAMES = {
+    PLUMB_BOB: "k1, k2, p1, p2, k3",
+    RATIONAL_POLYNOMIAL: "k1, k2, p1, p2, k3, k4, k5, k6",
+    EQUIDISTANT: "k1, k2, k3, k4",
+}
+Roi = tuple[int, int, int, int]
+"""A region of interest ``(x_offset, y_offset, width, height)`` in pixels."""
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The parts of a CameraInfo that the full-resolution maps depend on (normalized)."""
+
+    width: int
+    height: int
+    distortion_model: str
+    d: tuple[float, ...]
+    k: tuple[float, ...]
+    r: tuple[float, ...]
+    p: tuple[float, ...]
+    binning_x: int
+    binning_y: int
+
+
+@dataclass(frozen=True)
+class RoiState:
+    x: int
+    y: int
+    width: int
+    height: int
+    do_rectify: bool
+
+
+def _floats(value: Any, field: str, length: int | None) -> tuple[float, ...]:
+    try:
+        arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        text = f"CameraInfo.{field} is {value!r}: expected a sequence of numbers ({exc})"
+        raise CameraModelError(text) from exc
+    if length is not None and arr.size != length:
+        text = f"CameraInfo.{field} has {arr.size} values: expected {length} (row-major)"
+        raise CameraModelError(text)
+    if not np.isfinite(arr).all():
+        text = f"CameraInfo.{field} is {arr.tolist()}: every value must be finite"
+        raise CameraModelError(text)
+    return tuple(float(x) for x in arr)
+
+
+def _format_list(values: tuple[float, ...]) -> str:
+    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
+
+
+def parse_camera_info(info: CameraInfo) -> tuple[Calibration, RoiState]:
+    """Validate a CameraInfo and return its normalized calibration and ROI."""
+    width, height = int(info.width), int(info.height)
+    if width <= 0 or height <= 0:
+        text = (
+            f"CameraInfo width x height is {width} x {height}: expected the full-resolution "
+            "image size in pixels (both > 0)"
+        )
+        raise CameraModelError(text)
+    k = _floats(info.k, "k", 9)
+    p = _floats(info.p, "p", 12)
+    r = _floats(info.r, "r", 9)
+    d = _floats(info.d, "d", None)
+    if not any(k):
+        text = (
+            "CameraInfo.k is all zero: the camera is uncalibrated (image_proc refuses to "
+            "rectify it); calibrate it (visnav calibrate) and publish the result, e.g. via "
+            "the camera node's camera_info_url"
+        )
+        raise CameraModelError(text)
+    if k[0] == 0.0 or k[4] == 0.0:
+        text = f"CameraInfo.k is {_format_list(k)}: fx (k[0]) and fy (k[4]) must be non-zero"
+        raise CameraModelError(text)
+    if not any(p):
+        suggestion = _format_list((*k[0:3], 0.0, *k[3:6], 0.0, *k[6:9], 0.0))
+        text = (
+            "CameraInfo.p is all zero: fx, fy, cx, cy are read from P (image_geometry does not "
+            "fall back to K); for a monocular camera that is not rectified set "
+            f"p = {suggestion} (K with a zero fourth column)"
+        )
+        raise CameraModelError(text)
+    if p[0] == 0.0 or p[5] == 0.0:
+        text = f"CameraInfo.p is {_format_list(p)}: fx' (p[0]) and fy' (p[5]) must be non-zero"
+        raise CameraModelError(text)
+    model = str(info.distortion_model)
+    nonzero = any(d)
+    if model in DISTORTION_MODELS:
+        expected = DISTORTION_MODELS[model]
+        if nonzero and len(d) != expected:
+            text = (
+                f"CameraInfo.d has {len(d)} coefficients {_format_list(d)} for distortion_model "
+                f"{model!r}: expected {expected} ({_COEFFICIENT_NAMES[model]}); "
+                "fix the calibration file or the distortion_model name"
+            )
+            raise CameraModelError(text)
+    elif nonzero:
+        close = difflib.get_close_matches(model, list(DISTORTION_MODELS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        text = (
+            f"CameraInfo.distortion_model is {model!r} with non-zero d {_format_list(d)}: "
+            f"expected one of {', '.join(DISTORTION_MODELS)} (REP 104){hint}"
+        )
+        raise CameraModelError(text)
+    if nonzero and not any(r):
+        text = (
+            "CameraInfo.r is all zero but d is non-zero: rectification needs R; "
+            "a monocular camera uses the identity r = [1, 0, 0, 0, 1, 0, 0, 0, 1]"
+        )
+        raise CameraModelError(text)
+    binning_x = int(info.binning_x) or 1
+    binning_y = int(info.binning_y) or 1
+    roi = info.roi
+    rx, ry, rw, rh = int(roi.x_offset), int(roi.y_offset), int(roi.width), int(roi.height)
+    if rx == 0 and ry == 0 and rw == 0 and rh == 0:
+        rw, rh = width, height
+    if rw <= 0 or rh <= 0 or rx + rw > width or ry + rh > height:
+        text = (
+            f"CameraInfo.roi is x_offset={rx}, y_offset={ry}, width={rw}, height={rh}: expected "
+            f"a non-empty region inside the {width} x {height} image (all zero = full image)"
+        )
+        raise CameraModelError(text)
+    if rw // binning_x == 0 or rh // binning_y == 0:
+        text = (
+            f"CameraInfo binning_x/binning_y is {binning_x}/{binning_y}: larger than the "
+            f"{rw} x {rh} region it bins"
+        )
+        raise CameraModelError(text)
+    calib = Calibration(width, height, model, d, k, r, p, binning_x, binning_y)
+    return calib, RoiState(rx, ry, rw, rh, bool(roi.do_rectify))
+
+
+def binned(
+    k: NDArray[np.float64], p: NDArray[np.float64], bx: int, by: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Scale K and P for binning (image_geometry's K_binned / P_binned)."""
+    k = k.copy()
+    p = p.copy()
+    if bx > 1:
+        k[0, 0] /= bx
+        k[0, 2] /= bx
+        p[0, 0] /= bx
+        p[0, 2] /= bx
+        p[0, 3] /= bx
+    if by > 1:
+        k[1, 1] /= by
+        k[1, 2] /= by
+        p[1, 1] /= by
+        p[1, 2] /= by
+        p[1, 3] /= by
+    return k, p
+
+
+def as_points(values: ArrayLike, dim: int, name: str) -> tuple[NDArray[np.float64], bool]:
+    """Return (N, dim) float64 points and whether the input was a single point."""
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim == 1 and arr.shape[0] == dim:
+        return arr.reshape(1, dim), True
+    if arr.ndim == 2 and arr.shape[1] == dim:
+        return arr, False
+    text = f"{name} has shape {arr.shape}: expected ({dim},) or (N, {dim})"
+    raise CameraModelError(text)
+
+
+def shaped(points: NDArray[np.float64], single: bool) -> NDArray[np.float64]:
+    """Undo :func:`as_points`: one point back to ``(dim,)``, several as they are."""
+    return points[0].copy() if single else points
