@@ -27,8 +27,8 @@ def mujoco_gl(monkeypatch: pytest.MonkeyPatch) -> str:
 def test_quadrotor_flies_through_a_forest_without_touching_it() -> None:
     import mujoco
 
+    from visnav.description.world import load_world
     from visnav.sim.simulator import RobotSpawn, Simulator
-    from visnav.sim.world import load_world
     from visnav.sim.world_geometry import obstacle_distance
 
     world = load_world("forest", seed=0)

@@ -36,13 +36,14 @@ def test_car_maps_and_reaches_goals_in_the_office(mujoco_gl: str) -> None:
     del mujoco_gl
     import mujoco
 
+    from visnav.description.world import load_world
     from visnav.mapping import LETHAL_OBSTACLE, Costmap2D
     from visnav.mapping.nodes import MapperNode
     from visnav.perception.nodes import DepthImageToLaserScanNode
     from visnav.planning import GlobalPlanner, GlobalPlannerParams, GoalStatus
     from visnav.planning.nodes import NavigatorNode
     from visnav.sim.simulator import RobotSpawn, Simulator
-    from visnav.sim.world import load_world, true_occupancy_grid
+    from visnav.sim.world_geometry import true_occupancy_grid
 
     world = load_world("office")
     grid, origin = true_occupancy_grid(world, 0.05)

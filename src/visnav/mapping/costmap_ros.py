@@ -34,11 +34,8 @@ reliable and transient local (it is latched).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
-
-import numpy as np
 
 from visnav.graph.node import Node, Publisher
 from visnav.graph.param_dataclass import declare_params
@@ -54,17 +51,13 @@ from visnav.mapping.static_layer import StaticLayer
 from visnav.msgs.types import LaserScan, OccupancyGrid, PointCloud2
 from visnav.tf.buffer import Buffer
 from visnav.tf.errors import TransformException
+from visnav.tf.transforms import yaw_from_matrix, yaw_from_quaternion
 
-__all__ = ["MAP_QOS", "CostmapROS", "yaw_of"]
+__all__ = ["MAP_QOS", "CostmapROS"]
 
 MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 _NS = 1_000_000_000
-
-
-def yaw_of(matrix: np.ndarray) -> float:
-    """Yaw of a 4x4 transform's rotation."""
-    return math.atan2(float(matrix[1, 0]), float(matrix[0, 0]))
 
 
 class CostmapROS:
@@ -162,7 +155,7 @@ class CostmapROS:
                     f"'{self.global_frame}': {exc}"
                 )
                 return
-            transform = (float(T[0, 3]), float(T[1, 3]), yaw_of(T))
+            transform = (float(T[0, 3]), float(T[1, 3]), yaw_from_matrix(T))
         try:
             layer.set_map(msg, transform=transform)
         except CostmapError as exc:
@@ -199,7 +192,7 @@ class CostmapROS:
             return None
         t = ts.transform
         q = t.rotation
-        yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+        yaw = yaw_from_quaternion(q)
         self.pose_error = ""
         return float(t.translation.x), float(t.translation.y), yaw
 

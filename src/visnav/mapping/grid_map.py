@@ -41,8 +41,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from visnav.errors import VisnavError
 from visnav.mapping import _grid_kernels as kernels
+from visnav.mapping.errors import MappingError
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -52,7 +52,7 @@ __all__ = ["GridMap", "GridMapError", "GridMapParams", "GridView", "UpdateResult
 UNKNOWN_FLAG = 0.01
 
 
-class GridMapError(VisnavError, ValueError):
+class GridMapError(MappingError, ValueError):
     """Invalid grid map parameters or inputs."""
 
 

@@ -36,15 +36,15 @@ import dataclasses
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from visnav import message_filters
 from visnav.errors import VisnavError
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.mapping.grid_map import GridMap, GridMapParams, UpdateResult
+from visnav.mapping.grid_map import GridMap, GridMapError, GridMapParams, UpdateResult
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import cloud_to_xyz, xyz_to_cloud
 from visnav.msgs.time import time_to_ns
@@ -54,10 +54,14 @@ from visnav.tf.errors import ExtrapolationException, TransformException
 from visnav.tf.ros import TransformListener
 from visnav.tf.transforms import pose_to_matrix
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
 __all__ = ["GridMapNode", "GridMapRosParams", "GridMapRos", "POSE_STAMPED", "ODOMETRY"]
 
 POSE_STAMPED = 1
 ODOMETRY = 2
+_DROP_LOG_PERIOD_S = 5.0  # at most one "grid map: ..." warning per node per 5 s
 
 _MAP = GridMapParams()
 
@@ -168,7 +172,7 @@ class GridMapRos:
     Attributes:
         map: The grid map.
         updates: Successful updates so far.
-        dropped: Inputs dropped (reasons are logged once each).
+        dropped: Inputs dropped (the reason is logged at most once per 5 s, with the count).
     """
 
     def __init__(
@@ -196,14 +200,13 @@ class GridMapRos:
         self.fusion_s = 0.0
         self.dropped = 0
         self.last_update: UpdateResult | None = None
-        self._reported: set[str] = set()
         self._info: CameraInfo | None = None
         self._published_at = -1
         self._last_sensor: np.ndarray | None = None
         pose_type = int(values["pose_type"])
         if pose_type not in (POSE_STAMPED, ODOMETRY):
             msg = f"{prefix}.pose_type is {pose_type}: expected 1 (PoseStamped) or 2 (Odometry)"
-            raise VisnavError(msg)
+            raise GridMapError(msg)
         pose_cls: type[Any] = Odometry if pose_type == ODOMETRY else PoseStamped
         pose_topic = str(values["odom_topic"] if pose_type == ODOMETRY else values["pose_topic"])
         if values["depth_topic"] and pose_topic:
@@ -228,9 +231,10 @@ class GridMapRos:
     # ------------------------------------------------------------------ helpers
     def _fail(self, text: str) -> None:
         self.dropped += 1
-        if text not in self._reported:
-            self._reported.add(text)
-            self.node.get_logger().warning(f"grid map: {text}")
+        self.node.get_logger().warning(
+            f"grid map: {text} ({self.dropped} inputs dropped so far)",
+            throttle_duration_sec=_DROP_LOG_PERIOD_S,
+        )
 
     def _lookup(self, target: str, source: str, stamp_ns: int) -> np.ndarray | None:
         if not source or source == target:
@@ -374,6 +378,6 @@ class GridMapNode(Node):
         **node_kwargs: Passed to :class:`~visnav.graph.Node` (context, namespace, ...).
     """
 
-    def __init__(self, name: str = "grid_map", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "grid_map", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         self.grid = GridMapRos(self)

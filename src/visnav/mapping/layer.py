@@ -139,13 +139,6 @@ class CostmapLayer(Layer):
         known = g != NO_INFORMATION
         m[known] = g[known]
 
-    def update_with_true_overwrite(
-        self, master: Costmap2D, x0: int, y0: int, xn: int, yn: int
-    ) -> None:
-        """Copy every cell, NO_INFORMATION included."""
-        m, g = self._views(master, x0, y0, xn, yn)
-        m[...] = g
-
     def update_with_max(self, master: Costmap2D, x0: int, y0: int, xn: int, yn: int) -> None:
         """Master = max(master, layer) on known layer cells (unknown master cells take them)."""
         m, g = self._views(master, x0, y0, xn, yn)

@@ -103,12 +103,6 @@ class LayeredCostmap:
         msg = f"no layer {name!r}; layers: {[la.name for la in self.layers]}"
         raise CostmapError(msg)
 
-    def set_footprint(self, footprint: Footprint) -> None:
-        """Change the footprint and tell the layers."""
-        self.footprint = footprint
-        for layer in self.layers:
-            layer.on_footprint_changed()
-
     def resize_map(
         self,
         size_x: int,

@@ -40,6 +40,8 @@ import numpy as np
 
 from visnav.mapping.errors import MappingError
 from visnav.safe_yaml import load_yaml_file
+from visnav.tf.errors import InvalidArgumentException
+from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -389,7 +391,8 @@ def save_map(
         The YAML and PGM paths.
 
     Raises:
-        MapFileError: the grid's size does not match its data, or a threshold is invalid.
+        MapFileError: the grid's size does not match its data, a threshold is invalid, or
+            the origin orientation is non-finite or of zero length (all-zero reads as identity).
     """
     if not 0 <= free < occupied <= 100:
         msg = (
@@ -412,7 +415,11 @@ def save_map(
     pixels = grid_to_pgm_pixels(data.reshape(height, width), occupied=occupied, free=free)
     write_pgm(pgm_path, pixels, resolution=float(info.resolution))
     q = info.origin.orientation
-    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    try:  # an unset (all-zero) orientation is read as the identity, as map_server writes it
+        yaw = 0.0 if q.x == q.y == q.z == q.w == 0.0 else yaw_from_quaternion(q)
+    except InvalidArgumentException as exc:
+        msg = f"map save: info.origin.orientation: {exc}; publish a unit quaternion"
+        raise MapFileError(msg) from exc
     p = info.origin.position
     yaml_path.write_text(
         f"image: {pgm_path.name}\nresolution: {float(info.resolution):f}\n"

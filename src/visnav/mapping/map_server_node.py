@@ -15,12 +15,15 @@ instead. A missing or invalid file is an error at start, naming the file and fie
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.mapping.costmap_ros import MAP_QOS
 from visnav.mapping.map_io import MapFileError, OccupancyMap, load_map
 from visnav.msgs.types import MapMetaData, OccupancyGrid
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = ["MapServerNode"]
 
@@ -36,7 +39,7 @@ class MapServerNode(Node):
         MapFileError: ``yaml_filename`` is empty, or the map files are invalid.
     """
 
-    def __init__(self, name: str = "map_server", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "map_server", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         d = self.declare_parameter
         path = str(d("yaml_filename", "").value)

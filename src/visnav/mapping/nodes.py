@@ -22,9 +22,9 @@ per distinct reason.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.graph.qos import qos_profile_sensor_data
 from visnav.mapping.costmap_ros import MAP_QOS, CostmapROS
@@ -35,7 +35,12 @@ from visnav.tf.buffer import Buffer
 from visnav.tf.errors import ExtrapolationException, TransformException
 from visnav.tf.ros import TransformListener
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
 __all__ = ["CostmapNode", "MapperNode", "MapperParams"]
+
+_DROP_LOG_PERIOD_S = 5.0  # at most one "dropped a scan" warning per 5 s
 
 
 @dataclass(frozen=True)
@@ -70,7 +75,7 @@ class CostmapNode(Node):
         **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
     """
 
-    def __init__(self, name: str = "costmap_2d", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "costmap_2d", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         self.tf_buffer = Buffer()
         self.tf_listener = TransformListener(self.tf_buffer, self)
@@ -85,7 +90,7 @@ class MapperNode(Node):
         **node_kwargs: passed to :class:`~visnav.graph.Node`.
     """
 
-    def __init__(self, name: str = "mapper", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "mapper", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, MapperParams)
         self.map_frame = p.map_frame
@@ -115,7 +120,6 @@ class MapperNode(Node):
         self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data)
         self.create_timer(interval, self.publish_map)
         self._pending: list[LaserScan] = []
-        self._reported: set[str] = set()
         self.dropped = 0
 
     def _integrate(self, msg: LaserScan) -> bool:
@@ -135,9 +139,7 @@ class MapperNode(Node):
         self.dropped += 1
         frame = msg.header.frame_id
         text = f"dropped a scan: no transform from '{frame}' to '{self.map_frame}': {exc}"
-        if text not in self._reported:
-            self._reported.add(text)
-            self.get_logger().warning(text)
+        self.get_logger().warning(text, throttle_duration_sec=_DROP_LOG_PERIOD_S)
         return True
 
     def _on_scan(self, msg: LaserScan) -> None:

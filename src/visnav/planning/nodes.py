@@ -47,14 +47,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.mapping.costmap_ros import CostmapROS, yaw_of
+from visnav.mapping.costmap_ros import CostmapROS
 from visnav.msgs.construct import make
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time, time_to_ns
@@ -67,7 +67,10 @@ from visnav.planning.rotation_shim import RotationShim
 from visnav.tf.buffer import Buffer
 from visnav.tf.errors import TransformException
 from visnav.tf.ros import TransformListener
-from visnav.tf.transforms import pose_to_matrix
+from visnav.tf.transforms import pose_to_matrix, yaw_from_matrix
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = [
     "DWA_DEFAULTS",
@@ -144,7 +147,7 @@ class NavigatorNode(Node):
             parameter_overrides, remappings, use_sim_time).
     """
 
-    def __init__(self, name: str = "move_base", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "move_base", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         self.tf_buffer = Buffer()
         self.tf_listener = TransformListener(self.tf_buffer, self)
@@ -221,7 +224,7 @@ class NavigatorNode(Node):
             except (TransformException, ValueError) as exc:
                 reason = f"cannot transform the goal from '{frame}' into '{g_frame}': {exc}"
                 return self.navigator.reject(pose2d, NavError.NO_TRANSFORM, reason, now_ns=now)
-            target = (float(M[0, 3]), float(M[1, 3]), yaw_of(M))
+            target = (float(M[0, 3]), float(M[1, 3]), yaw_from_matrix(M))
         else:
             target = (float(goal[0]), float(goal[1]), float(goal[2]))
         return self.navigator.go_to(target, now_ns=now)

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, overload
 import numba
 import numpy as np
 
-from visnav.errors import VisnavError
+from visnav.planning.errors import PlanningError
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 __all__ = ["BsplineError", "UniformBspline", "parameterize_to_bspline"]
 
 
-class BsplineError(VisnavError, ValueError):
+class BsplineError(PlanningError):
     """Invalid B-spline inputs."""
 
 

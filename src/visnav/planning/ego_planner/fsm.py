@@ -24,14 +24,13 @@ from __future__ import annotations
 
 import enum
 import logging
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from visnav.errors import VisnavError
+from visnav.planning.errors import PlanningError
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -43,7 +42,7 @@ __all__ = ["FSMError", "FSMParams", "FSMState", "ReplanFSM", "TargetType"]
 _LOG = logging.getLogger("visnav.planning.ego_planner")
 
 
-class FSMError(VisnavError, ValueError):
+class FSMError(PlanningError):
     """Invalid FSM parameters or goals."""
 
 
@@ -345,8 +344,3 @@ class ReplanFSM:
             self.local_target_vel = np.zeros(3)
         else:
             self.local_target_vel = g.traj.evaluate_vel(t_target)
-
-    @property
-    def goal_distance(self) -> float:
-        """Distance from the odometry position to the goal (m)."""
-        return float(math.dist(self.odom_pos.tolist(), self.end_pt.tolist()))

@@ -32,11 +32,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from visnav.errors import VisnavError
 from visnav.planning.ego_planner.astar import AStar
 from visnav.planning.ego_planner.bspline import UniformBspline, parameterize_to_bspline
 from visnav.planning.ego_planner.optimizer import BsplineOptimizer, OptimizerParams
 from visnav.planning.ego_planner.polynomial import PolynomialTraj
+from visnav.planning.errors import PlanningError
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -56,7 +56,7 @@ __all__ = [
 _NS = 1_000_000_000
 
 
-class PlannerError(VisnavError, ValueError):
+class PlannerError(PlanningError):
     """Invalid planner parameters or inputs."""
 
 

@@ -33,9 +33,11 @@ from rosbags.typesys.stores.ros2_humble import (
     trajectory_msgs__msg__MultiDOFJointTrajectoryPoint as MultiDOFJointTrajectoryPoint,
 )
 
-from visnav.errors import VisnavError
 from visnav.msgs.time import duration_to_ns, ns_to_duration, ns_to_time, time_to_ns
 from visnav.msgs.types import Header, Quaternion, Transform, Twist, Vector3
+from visnav.planning.errors import PlanningError
+from visnav.tf.errors import InvalidArgumentException
+from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -58,7 +60,7 @@ __all__ = [
 _NS = 1_000_000_000
 
 
-class TrajectoryMessageError(VisnavError, ValueError):
+class TrajectoryMessageError(PlanningError):
     """A trajectory or command message that cannot be read."""
 
 
@@ -247,15 +249,18 @@ def msg_to_reference(msg: MultiDOFJointTrajectory) -> PositionReference:
     """Read a command message (its first point).
 
     Raises:
-        TrajectoryMessageError: No point or no transform.
+        TrajectoryMessageError: No point, no transform, or a zero or non-finite rotation.
     """
     if not msg.points or not msg.points[0].transforms:
         text = "command message needs one point with transforms[0] (position and yaw)"
         raise TrajectoryMessageError(text)
     pt = msg.points[0]
     tf = pt.transforms[0]
-    q = tf.rotation
-    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    try:
+        yaw = yaw_from_quaternion(tf.rotation)
+    except InvalidArgumentException as exc:
+        text = f"command message points[0].transforms[0].rotation: {exc}; send a unit quaternion"
+        raise TrajectoryMessageError(text) from exc
     vel = _arr(pt.velocities[0].linear) if pt.velocities else np.zeros(3)
     yaw_dot = float(pt.velocities[0].angular.z) if pt.velocities else 0.0
     acc = _arr(pt.accelerations[0].linear) if pt.accelerations else np.zeros(3)

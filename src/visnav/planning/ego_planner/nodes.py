@@ -31,18 +31,20 @@ slowed by compilation or cache loading.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from visnav.errors import VisnavError
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.grid_map_node import GridMapRos
+from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time, time_to_ns
 from visnav.msgs.types import Header, Odometry, Path, Point, Pose, PoseStamped, Quaternion
-from visnav.planning.ego_planner.fsm import FSMParams, ReplanFSM
+from visnav.planning.ego_planner.fsm import FSMError, FSMParams, ReplanFSM
 from visnav.planning.ego_planner.manager import (
     LocalTrajectory,
     PlannerManager,
@@ -60,6 +62,9 @@ from visnav.planning.ego_planner.traj_server import TrajectoryServer
 from visnav.tf.errors import TransformException
 from visnav.tf.transforms import euler_from_quaternion, pose_to_matrix
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
 __all__ = [
     "EgoPlannerNode",
     "EgoPlannerNodeParams",
@@ -67,6 +72,8 @@ __all__ = [
     "TrajServerParams",
     "TrajServerTiming",
 ]
+
+_WARN_PERIOD_S = 5.0  # a repeated warning is logged at most once per 5 s
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -138,7 +145,7 @@ class EgoPlannerNode(Node):
     """
 
     def __init__(
-        self, name: str = "ego_planner_node", *, seed: int = 0, **node_kwargs: Any
+        self, name: str = "ego_planner_node", *, seed: int = 0, **node_kwargs: Unpack[NodeOptions]
     ) -> None:
         super().__init__(name, **node_kwargs)
         top = declare_params(self, EgoPlannerNodeParams, defaults={"seed": seed})
@@ -150,7 +157,7 @@ class EgoPlannerNode(Node):
                 f"fsm.waypoints has {len(flat)} numbers: expected [x0, y0, z0, x1, ...] "
                 "for fsm.flight_type 2"
             )
-            raise VisnavError(msg)
+            raise FSMError(msg)
         waypoints = tuple((flat[i], flat[i + 1], flat[i + 2]) for i in range(0, len(flat), 3))
         fsm = declare_params(
             self, FSMParams, prefix="fsm.", names=_FSM_FIELDS, fixed={"waypoints": waypoints}
@@ -189,12 +196,7 @@ class EgoPlannerNode(Node):
             self.create_subscription(PoseStamped, top.goal_topic, self._on_goal, 10)
         self.create_timer(0.01, self._on_exec)
         self.create_timer(0.05, self._on_safety)
-        self._reported: set[str] = set()
-
-    def _warn_once(self, text: str) -> None:
-        if text not in self._reported:
-            self._reported.add(text)
-            self.get_logger().warning(text)
+        self._diag = _PlannerDiagnostics(self)
 
     def _to_global(self, frame: str, stamp_ns: int) -> np.ndarray | None:
         if not frame or frame == self.global_frame:
@@ -206,7 +208,10 @@ class EgoPlannerNode(Node):
         try:
             return self.tf.lookup_transform_matrix(self.global_frame, frame, 0)
         except TransformException as exc:
-            self._warn_once(f"ego_planner: no transform {self.global_frame} <- {frame}: {exc}")
+            self.get_logger().warning(
+                f"ego_planner: no transform {self.global_frame} <- {frame}: {exc}",
+                throttle_duration_sec=_WARN_PERIOD_S,
+            )
         return None
 
     def _now(self) -> int:
@@ -219,7 +224,9 @@ class EgoPlannerNode(Node):
         try:
             pose = t @ pose_to_matrix(msg.pose.pose)
         except (VisnavError, ValueError) as exc:
-            self._warn_once(f"ego_planner: invalid odometry pose: {exc}")
+            self.get_logger().warning(
+                f"ego_planner: invalid odometry pose: {exc}", throttle_duration_sec=_WARN_PERIOD_S
+            )
             return
         lin = msg.twist.twist.linear
         # nav_msgs/Odometry twist is in child_frame_id; ego-planner's simulators publish
@@ -234,13 +241,18 @@ class EgoPlannerNode(Node):
         p = msg.pose.position
         goal = t @ np.array([p.x, p.y, p.z, 1.0])
         if not self.fsm.set_goal(goal[:2], now_ns=self._now()):
-            self._warn_once("ego_planner: goal ignored (no odometry yet or no global trajectory)")
+            self.get_logger().warning(
+                "ego_planner: goal ignored (no odometry yet or no global trajectory)",
+                throttle_duration_sec=_WARN_PERIOD_S,
+            )
 
     def _on_exec(self) -> None:
         self.fsm.step(self._now())
+        self._diag.update(self.fsm.goals_reached, self.manager.records)
 
     def _on_safety(self) -> None:
         self.fsm.check_collision(self._now())
+        self._diag.update(self.fsm.goals_reached, self.manager.records)
 
     def _publish_trajectory(self, traj: LocalTrajectory) -> None:
         self._traj_pub.publish(
@@ -263,6 +275,45 @@ class EgoPlannerNode(Node):
             self._path_pub.publish(Path(header=header, poses=poses))
 
 
+class _PlannerDiagnostics:
+    """``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``, as diagnostic_updater) on change.
+
+    One status named after the node, published when a replan finished or a goal was
+    reached: ``goals_reached``, ``replans`` (so far) and ``planning_time_ms`` (the new
+    replans' total times, comma-separated, full precision). The scenario observer reads
+    them; upstream ego-planner reports neither on a topic.
+    """
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._status = get_message_class("diagnostic_msgs/msg/DiagnosticStatus")
+        self._kv = get_message_class("diagnostic_msgs/msg/KeyValue")
+        array = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
+        self._pub = node.create_publisher(array, "/diagnostics", 100)
+        self._seen = (0, 0)
+
+    def update(self, goals_reached: int, records: Sequence[Any]) -> None:
+        if (goals_reached, len(records)) == self._seen:
+            return
+        new = records[self._seen[1] :]
+        self._seen = (goals_reached, len(records))
+        values = {
+            "goals_reached": str(goals_reached),
+            "replans": str(len(records)),
+            "planning_time_ms": ",".join(repr(r.total_s * 1e3) for r in new),
+        }
+        status = self._status(
+            level=0,
+            name=self._node.get_fully_qualified_name(),
+            message="goal reached" if goals_reached else "planning",
+            hardware_id="",
+            values=[self._kv(key=k, value=v) for k, v in values.items()],
+        )
+        now = self._node.get_clock().now_ns()
+        header = Header(stamp=ns_to_time(now), frame_id="")
+        self._pub.publish(self._pub.msg_type(header=header, status=[status]))
+
+
 def _pose(pt: np.ndarray) -> Pose:
     return Pose(
         position=Point(x=float(pt[0]), y=float(pt[1]), z=float(pt[2])),
@@ -282,7 +333,7 @@ class TrajServerNode(Node):
         **node_kwargs: Passed to :class:`~visnav.graph.Node`.
     """
 
-    def __init__(self, name: str = "traj_server", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "traj_server", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         p = declare_params(self, TrajServerParams)
         timing = declare_params(self, TrajServerTiming, prefix="traj_server.")

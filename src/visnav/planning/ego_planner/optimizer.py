@@ -24,7 +24,6 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from visnav.errors import VisnavError
 from visnav.planning.ego_planner import lbfgs, rebound
 from visnav.planning.ego_planner.bspline import UniformBspline
 from visnav.planning.ego_planner.costs import (
@@ -33,6 +32,7 @@ from visnav.planning.ego_planner.costs import (
     fitness_cost,
     smoothness_cost,
 )
+from visnav.planning.errors import PlanningError
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 __all__ = ["BsplineOptimizer", "OptimizeResult", "OptimizerError", "OptimizerParams"]
 
 
-class OptimizerError(VisnavError, ValueError):
+class OptimizerError(PlanningError):
     """Invalid optimiser parameters or inputs."""
 
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from visnav.errors import VisnavError
+from visnav.planning.errors import PlanningError
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -25,7 +25,7 @@ __all__ = ["PolynomialError", "PolynomialTraj"]
 _N_COEF = 6  # quintic
 
 
-class PolynomialError(VisnavError, ValueError):
+class PolynomialError(PlanningError):
     """Invalid polynomial trajectory inputs."""
 
 
