@@ -21,12 +21,12 @@ import time
 
 import numpy as np
 
+from visnav.description.world import load_world
 from visnav.mapping.grid_map import GridMap, GridMapParams
 from visnav.planning.ego_planner.fsm import FSMState, ReplanFSM
 from visnav.planning.ego_planner.manager import LocalTrajectory, PlannerManager, warm_up
 from visnav.planning.ego_planner.messages import msg_to_trajectory, trajectory_to_msg
 from visnav.planning.ego_planner.traj_server import TrajectoryServer
-from visnav.sim.world import load_world
 from visnav.sim.world_geometry import shape_aabb, shape_signed_distance
 
 UPSTREAM_MS = 1.0

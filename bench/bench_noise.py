@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 import yaml
 
+from visnav.description.noise_specs import DepthNoise, WheelOdometryNoise
 from visnav.mapping.map_io import (
     MapMetadata,
     OccupancyMap,
@@ -40,12 +41,7 @@ from visnav.mapping.map_io import (
     read_pgm,
     save_map,
 )
-from visnav.sim.noise_models import (
-    DepthNoise,
-    WheelEncoderModel,
-    WheelOdometryNoise,
-    apply_depth_noise,
-)
+from visnav.sim.noise_models import WheelEncoderModel, apply_depth_noise
 from visnav.sim.vehicles.diff_drive import EncoderOdometry
 
 ROUNDS = 15

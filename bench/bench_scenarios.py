@@ -45,6 +45,8 @@ def _backend(kind: str, jobs: int) -> SweepBackend:
 
 def _sweep(args: argparse.Namespace, out: Path, jobs: int) -> tuple[dict[str, Any], float]:
     sets: dict[str, list[Any]] = {"slam": [False]} if args.no_slam else {}
+    if args.ideal_sensors:
+        sets["ideal_sensors"] = [True]
     if args.duration is not None:
         sets["duration"] = [args.duration]
     t0 = time.perf_counter()
@@ -77,6 +79,10 @@ def _print_runs(scenario: str, state: dict[str, Any]) -> None:
             f"{s['collisions']} collisions, {extra}, sim {s['sim_duration_s']:.0f} s, "
             f"RTF {s['real_time_factor']}"
         )
+        if "localization" in s:
+            print(
+                f"  localization {s['localization']}, odometry drift {s.get('odometry_drift_m')} m"
+            )
         if "slam" in s:
             print(f"  slam {s['slam']}")
     if not rows:
@@ -84,12 +90,55 @@ def _print_runs(scenario: str, state: dict[str, Any]) -> None:
     goals = sum(r["goals_total"] for r in rows)
     reached = sum(r["goals_reached"] for r in rows)
     print(f"goals reached {reached}/{goals}, collisions {sum(r['collisions'] for r in rows)}")
+    if scenario == "car":
+        _print_loop_acceptance(rows, goals, reached)
     ratios = [r["path_ratio"] for r in rows if r.get("path_ratio")]
     if ratios:
         print(f"mean path ratio {statistics.mean(ratios):.3f} (target <= 1.3)")
     speeds = [r["mean_speed_mps"] for r in rows if "mean_speed_mps" in r and scenario == "drone"]
     if speeds:
         print(f"mean speed {statistics.mean(speeds):.2f} m/s (target >= 1.5)")
+
+
+def _print_loop_acceptance(rows: list[dict[str, Any]], goals: int, reached: int) -> None:
+    """Issue 14's acceptance of SLAM in the loop (noise on): one verdict line per figure."""
+    loc = [r["localization"] for r in rows if r.get("localization", {}).get("source") == "slam"]
+    if not loc:
+        return
+    rmse = [x["rmse_m"] for x in loc if x.get("rmse_m") is not None]
+    worst = [x["max_m"] for x in loc if x.get("max_m") is not None]
+    drift = [r["odometry_drift_m"] for r in rows if r.get("odometry_drift_m") is not None]
+    rtf = statistics.median(r["real_time_factor"] for r in rows)
+    checks = [
+        ("goals reached", f"{reached / goals:.1%}", reached >= 0.95 * goals, ">= 95 %"),
+        (
+            "collisions",
+            str(sum(r["collisions"] for r in rows)),
+            not any(r["collisions"] for r in rows),
+            "0",
+        ),
+        (
+            "localization RMSE (worst run)",
+            f"{max(rmse):.4f} m" if rmse else "-",
+            bool(rmse) and max(rmse) <= 0.05,
+            "<= 0.05 m",
+        ),
+        (
+            "localization max (worst run)",
+            f"{max(worst):.4f} m" if worst else "-",
+            bool(worst) and max(worst) <= 0.15,
+            "<= 0.15 m",
+        ),
+        (
+            "odometry drift (smallest)",
+            f"{min(drift):.3f} m" if drift else "-",
+            bool(drift) and min(drift) >= 0.3,
+            ">= 0.3 m",
+        ),
+        ("median real-time factor", f"{rtf:.3f}", rtf >= 1.0, ">= 1.0 (quiet machine)"),
+    ]
+    for name, value, ok, target in checks:
+        print(f"  {name:<32} {value:>10}  {'ok' if ok else 'NOT MET'} (target {target})")
 
 
 def _check_run(args: argparse.Namespace, root: Path, state: dict[str, Any]) -> int:
@@ -105,6 +154,7 @@ def _check_run(args: argparse.Namespace, root: Path, state: dict[str, Any]) -> i
         cmd = [sys.executable, "-m", "visnav.cli.main", "run", args.scenario, "--quiet"]
         cmd += ["--seed", str(run["seed"]), "--out", str(ref)]
         cmd += ["--no-slam"] if args.no_slam else []
+        cmd += ["--ideal-sensors"] if args.ideal_sensors else []
         env = {**os.environ, "VISNAV_DOMAIN": str(3_000_000 + os.getpid() % 100_000)}
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
@@ -123,6 +173,9 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=1, help="runs at a time")
     parser.add_argument("--backend", choices=["local", "ray"], default="local")
     parser.add_argument("--no-slam", action="store_true", help="car: navigation only")
+    parser.add_argument(
+        "--ideal-sensors", action="store_true", help="car: ground truth odometry, SLAM beside"
+    )
     parser.add_argument("--compare-jobs", action="store_true", help="also time one job")
     parser.add_argument("--repeat", type=int, default=1, help="--compare-jobs: pairs to time")
     parser.add_argument("--duration", type=float, default=None, help="sim seconds per run")

@@ -19,7 +19,7 @@ from visnav.scenarios.runner import ScenarioError, format_summary, run_scenario
 def test_short_car_run_summary_and_bag(tmp_path: Path) -> None:
     with Context(transport="local") as ctx:
         summary = run_scenario(
-            "car", duration_s=0.5, out=tmp_path / "run", context=ctx, progress=None
+            "car", duration_s=1.1, out=tmp_path / "run", context=ctx, progress=None
         )
     on_disk = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert on_disk == summary
@@ -34,20 +34,45 @@ def test_short_car_run_summary_and_bag(tmp_path: Path) -> None:
     ):
         assert key in summary
     assert summary["scenario"] == "car"
-    assert summary["sim_duration_s"] == pytest.approx(0.5, abs=0.01)
+    assert summary["sim_duration_s"] == pytest.approx(1.1, abs=0.01)
     topics = summary["topics"]
+    # left out of the bag and so not subscribed: nothing renders the RGB camera
     assert topics["/camera/image_raw"]["type"] == "sensor_msgs/msg/Image"
-    assert topics["/camera/image_raw"]["rate_hz"] == pytest.approx(30.0, rel=0.05)
-    assert topics["/scan"]["count"] >= 8
+    assert topics["/camera/image_raw"]["count"] is None
+    assert topics["/scan"]["count"] >= 16
+    assert topics["/bumper_states"]["rate_hz"] == pytest.approx(200.0, rel=0.01)
     info = bag_info(summary["bag"])
     recorded = {t.name if hasattr(t, "name") else t for t in info.to_dict()["topics"]}
     assert "/ground_truth/odom" in str(recorded)
     assert "/camera/image_raw" not in str(recorded)  # bulky topics left out by default
     assert "scenario car" in format_summary(summary)
-    # ground-truth odometry until SLAM closes the loop (--no-ideal-sensors: wheel encoders)
+    # by default wheel encoders with SLAM in the loop (--ideal-sensors: ground-truth odometry)
+    assert summary["odometry"]["source"] == "encoder"
+    assert summary["localization"]["source"] == "slam"
+    assert summary["goals_total"] == 4
+    # the mapper's /map (1 Hz) saved as map_saver does
+    assert (tmp_path / "run" / "map.yaml").read_text().startswith("image: map.pgm\n")
+
+
+def test_short_ideal_car_run_localization_from_tf(tmp_path: Path) -> None:
+    with Context(transport="local") as ctx:
+        summary = run_scenario(
+            "car",
+            duration_s=1.0,
+            out=tmp_path / "run",
+            slam=False,
+            ideal_sensors=True,
+            context=ctx,
+            progress=None,
+        )
     assert summary["odometry"]["source"] == "world"
     assert summary["odometry"]["drift_m"] < 0.01
-    assert (tmp_path / "run" / "map.yaml").read_text().startswith("image: map.pgm\n")
+    assert summary["odometry_drift_m"] < 0.01
+    loc = summary["localization"]
+    assert loc["source"] == "static"
+    assert loc["samples"] >= 9  # 10 Hz of sim time
+    assert loc["rmse_m"] < 0.01  # map -> odom is the identity with ground-truth odometry
+    assert "slam" not in summary
 
 
 def test_unknown_scenario_suggests() -> None:

@@ -3,24 +3,29 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from visnav.errors import VisnavError
+from visnav.scenarios.runner import launch_file
 from visnav.scenarios.sweep import load_state
 from visnav.scenarios.sweep_spec import (
     RunSpec,
     SweepError,
+    check_scenario,
     domain_for,
     expand_runs,
     parse_seeds,
     parse_sets,
+    scenario_options,
     setting_label,
 )
 
@@ -86,13 +91,64 @@ def test_product_settings_outermost_and_distinct_domains() -> None:
     assert domain_for(7, 3) == domain_for(8, 2)  # only the sum matters; ids are random
 
 
-def test_empty_product_and_scenario_files_refused() -> None:
+def test_empty_product_and_unknown_scenarios_refused() -> None:
     with pytest.raises(SweepError, match="the sweep is empty"):
         expand_runs("car", [], {}, sweep_id=0)
-    with pytest.raises(SweepError, match="scenario files are not supported yet"):
+    with pytest.raises(SweepError, match="no such YAML launch file"):
         expand_runs("my_scenario.yaml", [0], {}, sweep_id=0)
-    with pytest.raises(SweepError, match="scenario 'boat': unknown scenario; visnav run"):
+    with pytest.raises(SweepError, match="scenario 'boat': not a built-in scenario"):
         expand_runs("boat", [0], {}, sweep_id=0)
+
+
+def test_a_launch_file_scenario_sets_its_args(tmp_path: Path) -> None:
+    path = tmp_path / "my_car.launch.yaml"
+    path.write_text(launch_file("car").read_text())
+    scenario = check_scenario(str(path))
+    assert scenario == str(path.absolute())
+    options = scenario_options(scenario)
+    assert {"slam", "ideal_sensors", "goals", "duration", "record_all"} <= set(options)
+    assert "seed" not in options
+    assert "out" not in options
+    sets = parse_sets(["goals=1,2", "slam=false", "record-all=yes"], options)
+    assert sets == {"goals": ["1", "2"], "slam": ["false"], "record_all": [True]}
+    runs = expand_runs(scenario, [3], sets, sweep_id=0)
+    assert [r.setting for r in runs] == [
+        "goals=1,slam=false,record_all=true",
+        "goals=2,slam=false,record_all=true",
+    ]
+    assert runs[1].run_kwargs() == {
+        "seed": 3,
+        "record_all": True,
+        "launch_args": {"goals": "2", "slam": "false"},
+    }
+    # values are checked by loading the file with them (choices), keys against its args
+    with pytest.raises(SweepError, match="slam='maybe' is not a launch arg"):
+        parse_sets(["slam=maybe"], options)
+    with pytest.raises(SweepError, match="unknown key 'gaols'; expected KEY=V1,V2 with KEY one of"):
+        parse_sets(["gaols=3"], options)
+
+
+def test_a_launch_file_without_seed_or_out_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "bare.launch.yaml"
+    path.write_text("launch:\n  - arg: {name: seed, default: '0'}\n")
+    with pytest.raises(SweepError, match="declares no arg out"):
+        scenario_options(check_scenario(str(path)))
+
+
+@functools.cache
+def _drone_options() -> dict[str, Any]:
+    return scenario_options(str(launch_file("drone")))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.text(max_size=25), max_size=3))
+def test_fuzz_file_sets_only_visnav_errors(items: list[str]) -> None:
+    options = _drone_options()
+    try:
+        sets = parse_sets(items, options)
+    except VisnavError:
+        return
+    assert all(values for values in sets.values())
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:

@@ -1,4 +1,4 @@
-"""``visnav run car | drone``: a built-in scenario end to end, with a summary."""
+"""``visnav run car | drone | FILE``: a scenario launch file end to end, with a summary."""
 
 from __future__ import annotations
 
@@ -13,7 +13,11 @@ __all__ = ["add_arguments"]
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``run`` options."""
-    parser.add_argument("scenario", help=f"one of: {', '.join(SCENARIOS)}")
+    parser.add_argument(
+        "scenario",
+        help=f"one of: {', '.join(SCENARIOS)}, or a scenario launch file (.yaml) "
+        "(visnav/scenarios/launch/car.launch.yaml shows what one needs)",
+    )
     parser.add_argument("--duration", type=float, default=None, help="simulated seconds")
     parser.add_argument("--seed", type=int, default=0, help="seed of world, sensors and task")
     parser.add_argument("--out", default=None, help="output directory (default runs/<time>)")
@@ -26,15 +30,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--realtime", action="store_true", help="pace to the wall clock")
     parser.add_argument("--view", action="store_true", help="stream to the Rerun web viewer")
     parser.add_argument(
-        "--no-slam", action="store_true", help="car: skip the visual SLAM (about 2.5x faster)"
+        "--no-slam",
+        action="store_true",
+        help="car: no visual SLAM (map -> odom is then the static spawn pose, or AMCL's)",
     )
     parser.add_argument(
         "--ideal-sensors",
         action=argparse.BooleanOptionalAction,
-        default=True,
-        help="car: ground-truth odometry and noise-free cameras (the default until SLAM "
-        "closes the loop); --no-ideal-sensors: wheel-encoder odometry with slip, camera and "
-        "depth noise (docs/simulator.md)",
+        default=False,
+        help="car: ground-truth odometry and noise-free cameras, SLAM beside the navigation "
+        "(the behaviour before SLAM closed the loop); default: wheel-encoder odometry with "
+        "slip, camera and depth noise, SLAM publishes map -> odom (docs/slam.md)",
+    )
+    parser.add_argument(
+        "--map",
+        default=None,
+        metavar="MAP.yaml",
+        help="car: localise in this map (map_server + AMCL: launch args use_map, map)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=cmd_run)
@@ -44,6 +56,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run the scenario and print the summary table."""
     if args.out is not None:
         check_output_dir(args.out, what="the run's output directory (--out)")
+    from visnav.graph.context import Context
+
+    launch_args = {"map": args.map, "use_map": "true"} if args.map else {}
+    context = Context(args.domain) if getattr(args, "domain", None) is not None else None
     summary = run_scenario(
         args.scenario,
         seed=args.seed,
@@ -55,6 +71,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         view=args.view,
         slam=not args.no_slam,
         ideal_sensors=args.ideal_sensors,
+        launch_args=launch_args,
+        context=context,
         progress=None if args.quiet else sys.stderr,
     )
     print(format_summary(summary))

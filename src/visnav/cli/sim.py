@@ -92,8 +92,8 @@ def run_sim(
         VisnavError: an unknown world or robot (with the closest name), a malformed
             file, a bad spawn pose, no headless OpenGL.
     """
+    from visnav.description.world import load_world
     from visnav.sim.simulator import RobotSpawn, SimStats, Simulator
-    from visnav.sim.world import load_world
 
     pose: tuple[float, float, float, float] | None = None
     if spawn is not None:

@@ -1,4 +1,4 @@
-"""``visnav sweep car|drone --seeds 0-99 [--set k=v1,v2] --out DIR``; ``sweep report DIR``."""
+"""``visnav sweep car|drone|FILE --seeds 0-99 [--set k=v1,v2] --out DIR``; ``sweep report DIR``."""
 
 from __future__ import annotations
 
@@ -15,7 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``sweep`` options."""
     keys = ", ".join(f"{k} ({o.type_name})" for k, o in RUN_OPTIONS.items())
     parser.add_argument(
-        "scenario", help="car or drone (or `report` to rebuild DIR/report.html: sweep report DIR)"
+        "scenario",
+        help="car, drone or a scenario launch file (.yaml; --set keys: its args), or `report` "
+        "to rebuild DIR/report.html: sweep report DIR",
     )
     parser.add_argument("dir", nargs="?", help="with `report`: the sweep directory")
     parser.add_argument("--seeds", default=None, help="seeds: 0-99, 0,3,7 or 4")
@@ -24,7 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="KEY=V1,V2",
-        help=f"vary a run option (one setting per value); keys: {keys}",
+        help=f"vary a run option (one setting per value); keys: {keys} (a launch file: "
+        "its args, record_all, record_images)",
     )
     parser.add_argument("--jobs", type=int, default=None, help="runs at a time (default 1 local)")
     parser.add_argument("--backend", choices=["local", "ray"], default="local")
@@ -67,11 +70,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         msg = f"--timeout is {args.timeout}: expected a positive number of seconds"
         raise SweepError(msg)
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
-    sets = parse_sets(args.set) if args.set or seeds is not None else None
     from visnav.scenarios.sweep import SweepBackend, run_sweep
-    from visnav.scenarios.sweep_spec import check_scenario
+    from visnav.scenarios.sweep_spec import check_scenario, scenario_options
 
-    check_scenario(args.scenario)
+    scenario = check_scenario(args.scenario)
+    options = scenario_options(scenario)
+    sets = parse_sets(args.set, options) if args.set or seeds is not None else None
     backend: SweepBackend
     if args.backend == "ray":
         from visnav.scenarios.sweep_ray import RayBackend
@@ -91,7 +95,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         jobs = 1 if args.jobs is None else args.jobs
         backend = LocalBackend(jobs=jobs, timeout_s=args.timeout)
     state = run_sweep(
-        args.scenario,
+        scenario,
         out=args.out,
         backend=backend,
         seeds=seeds,

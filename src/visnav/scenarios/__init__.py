@@ -1,7 +1,10 @@
-"""Built-in scenarios: worlds (:mod:`visnav.scenarios.worlds`), robots and launch files.
+"""Built-in scenarios: launch files and the observer (worlds and robots: :mod:`visnav.description`).
 
-Robot descriptions are data files under ``robots/`` (URDF / Xacro); locate them
-with :func:`importlib.resources.files`. Importing this package has no side effects.
+``launch/car.launch.yaml`` and ``launch/drone.launch.yaml`` (shipped in the package) are
+the scenarios; :mod:`visnav.scenarios.missions` holds the nodes that send their goals,
+:mod:`visnav.scenarios.observer` the node that scores a run from topics, and
+:mod:`visnav.scenarios.runner` ``visnav run`` (launch + bag + summary). Sweeps:
+:mod:`visnav.scenarios.sweep`. Importing this package has no side effects.
 """
 
 from __future__ import annotations

@@ -41,7 +41,6 @@ Decisions, and why:
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -198,28 +197,26 @@ class CarSlamTask:
 
     def results(self) -> dict[str, Any]:
         """The ``slam`` summary key (module docstring)."""
-        system = self.slam.system
+        stats = self.slam.stats()
         tracked = self.slam.trajectory()
         est, gt = self._paired(tracked)
         out: dict[str, Any] = slam_metrics(est, gt)
         out.update(
             {
-                "frames": system.n_frames if system is not None else 0,
+                "frames": stats.frames,
                 "tracked": len(tracked),
                 "evaluated": len(est),
-                "tracking_lost": system.n_lost if system is not None else 0,
-                "relocalized": system.n_relocalized if system is not None else 0,
-                "keyframes": (
-                    sum(1 for kf in system.map.keyframes if not kf.bad) if system is not None else 0
-                ),
-                "loop_closures": len(system.loops) if system is not None else 0,
+                "tracking_lost": stats.lost,
+                "relocalized": stats.relocalized,
+                "keyframes": stats.keyframes,
+                "loop_closures": stats.loops,
                 "skipped": self.slam.skipped,
                 "dropped": self.slam.dropped,
+                "ba_runs": stats.ba_runs,
+                "ba_failures": stats.ba_failures,
+                "cpu_s": round(stats.cpu_s, 2),
             }
         )
-        if system is not None and system.timings:
-            per_frame = [sum(t.values()) for t in system.timings]
-            out["slam_time_s"] = round(math.fsum(per_frame), 2)
         return {"slam": out}
 
     def write_outputs(self, out_dir: Path) -> list[Path]:

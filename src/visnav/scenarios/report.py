@@ -29,6 +29,7 @@ from visnav.scenarios.report_plots import (
     success_png,
     trajectories_png,
 )
+from visnav.scenarios.runner import SCENARIOS
 
 __all__ = ["REPORT_NAME", "setting_stats", "task_ok", "wilson_interval", "write_report"]
 
@@ -182,6 +183,17 @@ def _failures(runs: Sequence[dict[str, Any]]) -> str:
     return f'<table id="failures">{head}<th class="l">reason</th></tr>{rows}</table>'
 
 
+def _kind(scenario: str, runs: list[dict[str, Any]]) -> str | None:
+    """``car`` / ``drone``: the scenario, or for a launch file its runs' summary ``scenario``."""
+    if scenario in SCENARIOS:
+        return scenario
+    for run in runs:
+        kind = (run.get("summary") or {}).get("scenario")
+        if kind in SCENARIOS:
+            return str(kind)
+    return None
+
+
 def write_report(sweep_dir: Path, state: dict[str, Any]) -> Path:
     """Write ``DIR/report.html`` for the sweep ``state`` (as in ``sweep.json``); return its path."""
     scenario = state["scenario"]
@@ -219,6 +231,13 @@ def write_report(sweep_dir: Path, state: dict[str, Any]) -> Path:
             parts.append(f"<p>Not plotted: {note} (scenario {html.escape(scenario)}).</p>")
     parts.append("<h2>Failed runs</h2>")
     parts.append(_failures(state["runs"]))
+    kind = _kind(scenario, state["runs"])
+    if kind is None:
+        parts.append(
+            "<p>Trajectories not plotted: the scenario file's observer is not a car or "
+            "drone one.</p>"
+        )
+        settings = {}
     for label, runs in settings.items():
         panels = [
             {
@@ -226,7 +245,7 @@ def write_report(sweep_dir: Path, state: dict[str, Any]) -> Path:
                 "status": r["status"],
                 "reason": r.get("reason"),
                 "ok_task": task_ok(r),
-                "track": read_trajectory(sweep_dir / r["dir"] / "bag", scenario),
+                "track": read_trajectory(sweep_dir / r["dir"] / "bag", str(kind)),
             }
             for r in runs
         ]
@@ -235,7 +254,7 @@ def write_report(sweep_dir: Path, state: dict[str, Any]) -> Path:
             "<p>Ground truth over the world's map; green: success, orange: goal missed or "
             "collision, red frame: failed run.</p>"
         )
-        parts.append(_img(trajectories_png(scenario, panels), f"trajectories {label}"))
+        parts.append(_img(trajectories_png(str(kind), panels), f"trajectories {label}"))
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"
         f"<title>visnav sweep {html.escape(scenario)}</title><style>{_CSS}</style></head>"

@@ -119,7 +119,7 @@ def world_map(
     scenario: str, seed: int
 ) -> tuple[npt.NDArray[np.bool_], tuple[float, float, float, float]]:
     """The true occupancy of the scenario's world for ``seed`` and its extent (x0, x1, y0, y1)."""
-    from visnav.sim.world import load_world  # noqa: PLC0415 - heavy
+    from visnav.description.world import load_world  # noqa: PLC0415 - heavy
     from visnav.sim.world_geometry import true_occupancy_grid  # noqa: PLC0415
 
     sdef = SCENARIOS[scenario]

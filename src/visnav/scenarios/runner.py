@@ -1,25 +1,35 @@
-"""``visnav run car | drone``: start a built-in scenario, record it and summarise it.
+"""``visnav run car | drone | FILE``: launch a scenario, record it and summarise it.
 
-A scenario is a world, a robot and the pipeline built on them (whatever of it
-exists), run in lock-step simulation in one :class:`~visnav.graph.Context` (so
-every in-process message is zero-copy and the run is deterministic for a seed),
-while a recorder writes a bag and a counter measures every topic. The run ends
-after ``duration`` seconds of sim time (or when the scenario's task finishes) with
-``summary.json`` in the output directory and a printed table.
+A scenario is a YAML launch file (the built-in ones are ``car.launch.yaml`` and
+``drone.launch.yaml`` in ``visnav/scenarios/launch``): the ``sim`` node (with
+``lockstep: true``), the robot's stack, a mission node that sends the goals and the
+observer node (:mod:`visnav.scenarios.observer`) that computes the summary from topics.
+:func:`run_scenario` launches it with :class:`~visnav.launch.supervisor.Launcher`: the
+shared nodes run lock-step with the simulation in one :class:`~visnav.graph.Context` (so
+every in-process message is zero-copy and the run is deterministic for a seed; a node
+given ``process: own`` runs in its own process and talks over Zenoh), while a recorder
+writes a bag and a counter measures every topic. The run ends after ``duration`` seconds
+of sim time or when the observer says the task is done, with ``summary.json`` in the
+output directory and a printed table. ``visnav launch car seed:=4 out:=DIR`` runs the
+same nodes the same way (without the bag and the topic counts).
 
 ``summary.json`` keys scripts can rely on: ``scenario``, ``seed``, ``sim_duration_s``,
 ``wall_duration_s``, ``real_time_factor``, ``bag`` (path), ``topics`` ({name: {type,
-count, rate_hz}}), plus the task keys of the pipeline pieces that ran (``goals_total``,
-``goals_reached``, ``collisions``, ``path_length_m``, ``shortest_path_m``,
-``min_clearance_m``, ``mean_speed_mps``, ``planning_time_ms``, ``slam``). A task with a
-``write_outputs(out_dir)`` method writes its files there too (the car's SLAM:
-``slam_trajectory.tum``, ``ground_truth.tum``).
+count, rate_hz}}), plus the observer's task keys (``goals_total``, ``goals_reached``,
+``collisions``, ``path_length_m``, ``shortest_path_m``, ``path_ratio``,
+``goal_times_s``, ``odometry``, ``odometry_drift_m``, ``localization``, ``slam`` for the
+car; ``min_clearance_m``, ``mean_speed_mps``, ``planning_time_ms`` for the drone). The
+observer writes its files there too (the car's ``map.yaml`` / ``map.pgm`` and SLAM
+``slam_trajectory.tum``, ``ground_truth.tum``). A launch file given as the scenario gets
+``launch_file`` (its path) as well.
 
 Where visnav differs from recording everything with ``ros2 bag record -a``: raw camera
 images and point clouds are left out of the scenario bag by default (``record_all=True``
 / ``--record-all`` keeps them): at 640x480 they are ~130 MB per simulated second.
 ``record_images=True`` / ``--record-images`` keeps the camera images only, so that
-``visnav view BAG`` shows them beside the 3D view.
+``visnav view BAG`` shows them beside the 3D view. What the bag leaves out the topic
+counter does not subscribe to either (its ``topics`` entry has count and rate None): a
+camera renders only while one of its topics has a subscriber, as gazebo_ros_camera does.
 """
 
 from __future__ import annotations
@@ -27,85 +37,83 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import difflib
-import functools
+import importlib.resources
 import json
 import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Protocol, TextIO
+from typing import Any, TextIO
 
 from visnav.bag.recorder import BagRecorder
-from visnav.errors import VisnavError
 from visnav.graph.context import Context
 from visnav.graph.introspect import (
     new_published_topics,
     subscription_qos_for,
 )
 from visnav.graph.node import Node
+from visnav.launch.description import LaunchDescription
+from visnav.launch.loader import load_launch
+from visnav.launch.supervisor import Launcher
 from visnav.msgs.serde import get_message_class
+from visnav.scenarios.errors import ScenarioError
 from visnav.sim.guards import SecondSimulationError, refuse_second_simulation
-from visnav.sim.simulator import RobotSpawn, Simulator
-from visnav.sim.world import load_world
 
 __all__ = [
     "SCENARIOS",
-    "format_summary",
+    "ScenarioDef",
     "ScenarioError",
-    "ScenarioTask",
     "TopicCounter",
+    "format_summary",
+    "launch_file",
     "run_scenario",
 ]
 
 _BULKY_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/PointCloud2")
-
-
-class ScenarioError(VisnavError, ValueError):
-    """An unknown scenario or bad scenario options."""
-
-
-class ScenarioTask(Protocol):
-    """What a scenario's pipeline offers the runner."""
-
-    def done(self) -> bool:
-        """True when the task finished before the duration ran out."""
-
-    def results(self) -> dict[str, Any]:
-        """The task's summary keys (``goals_reached``, ``slam``, ...)."""
+_SLICE_S = 0.1  # sim seconds between progress updates, topic polls and child supervision
 
 
 @dataclasses.dataclass(frozen=True)
 class ScenarioDef:
-    """A built-in scenario: world, robot and default duration."""
+    """A built-in scenario: its launch file, world, robot and default duration."""
 
     name: str
     world: str
     robot: str
     duration_s: float
-    build: Callable[[Context, Simulator, int, bool], list[ScenarioTask]]
+    launch: str
     namespace: str = "/"
 
 
-def _build_car(
-    ctx: Context, sim: Simulator, seed: int, slam: bool, *, encoders: bool = True
-) -> list[ScenarioTask]:
-    from visnav.scenarios.car import build_car_pipeline  # noqa: PLC0415 - only when run
-
-    return build_car_pipeline(ctx, sim, seed, slam=slam, encoders=encoders)
-
-
-def _build_drone(ctx: Context, sim: Simulator, seed: int, slam: bool) -> list[ScenarioTask]:
-    del slam  # the drone runs no SLAM
-    from visnav.scenarios.drone import build_drone_pipeline  # noqa: PLC0415 - only when run
-
-    return build_drone_pipeline(ctx, sim, seed)
-
-
 SCENARIOS: dict[str, ScenarioDef] = {
-    "car": ScenarioDef("car", "office", "car", 240.0, _build_car),
-    "drone": ScenarioDef("drone", "forest", "quadrotor", 60.0, _build_drone, namespace="/drone"),
+    "car": ScenarioDef("car", "office", "car", 240.0, "car.launch.yaml"),
+    "drone": ScenarioDef(
+        "drone", "forest", "quadrotor", 60.0, "drone.launch.yaml", namespace="/drone"
+    ),
 }
+
+
+def launch_file(name: str) -> Path:
+    """The launch file of built-in scenario ``name`` (shipped in ``visnav/scenarios/launch``).
+
+    Raises:
+        ScenarioError: not a built-in scenario (the closest name is suggested).
+    """
+    sdef = SCENARIOS.get(name)
+    if sdef is None:
+        close = difflib.get_close_matches(name, list(SCENARIOS), n=2)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        msg = (
+            f"unknown scenario {name!r}: expected one of {', '.join(SCENARIOS)} or a YAML "
+            f"launch file (path ending in .yaml){hint}"
+        )
+        raise ScenarioError(msg)
+    return Path(str(importlib.resources.files("visnav.scenarios") / "launch" / sdef.launch))
+
+
+def _is_file(name: str) -> bool:
+    return name.endswith((".yaml", ".yml")) or "/" in name
 
 
 class TopicCounter:
@@ -113,10 +121,15 @@ class TopicCounter:
 
     Subscribes to each topic of the graph as it appears, with a QoS compatible
     with its publishers; callbacks only count (in-process delivery is zero-copy).
+    Topics of ``skip_types`` are listed with count None but not subscribed to: the
+    simulator renders a camera only while its topics have subscribers.
     """
 
-    def __init__(self, ctx: Context, clock_ns: Callable[[], int]) -> None:
+    def __init__(
+        self, ctx: Context, clock_ns: Callable[[], int], *, skip_types: tuple[str, ...] = ()
+    ) -> None:
         self._ctx = ctx
+        self._skip_types = skip_types
         self._node = Node("_visnav_topic_counter", context=ctx)
         self._clock_ns = clock_ns
         self._version = -1
@@ -134,6 +147,8 @@ class TopicCounter:
                 continue
             self.types[topic] = types[0]
             stats = self.counts.setdefault(topic, [0, 0, 0])
+            if types[0] in self._skip_types:
+                continue  # not subscribed: a camera renders only for subscribers
 
             def on_msg(_msg: Any, stats: list[int] = stats) -> None:
                 now = self._clock_ns()
@@ -146,9 +161,15 @@ class TopicCounter:
             self._node.create_subscription(get_message_class(types[0]), topic, on_msg, qos)
 
     def summary(self) -> dict[str, dict[str, Any]]:
-        """``{topic: {type, count, rate_hz}}`` (rate over sim time; 0 with < 2 messages)."""
+        """``{topic: {type, count, rate_hz}}`` (rate over sim time; 0 with < 2 messages).
+
+        A topic of ``skip_types`` has ``count`` and ``rate_hz`` None (not counted).
+        """
         out: dict[str, dict[str, Any]] = {}
         for topic in sorted(self.types):
+            if self.types[topic] in self._skip_types:
+                out[topic] = {"type": self.types[topic], "count": None, "rate_hz": None}
+                continue
             count, first, last = self.counts[topic]
             rate = (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else 0.0
             out[topic] = {"type": self.types[topic], "count": count, "rate_hz": round(rate, 3)}
@@ -214,6 +235,33 @@ def _out_dir(out: str | Path | None) -> Path:
     return Path("runs") / stamp
 
 
+def _bool(value: bool) -> str:
+    return "true" if value else "false"
+
+
+def scenario_args(
+    description_args: Mapping[str, Any],
+    options: Mapping[str, str],
+    *,
+    where: str,
+    required: tuple[str, ...] = ("seed", "out"),
+) -> dict[str, str]:
+    """The launch arguments of a run: the options the file declares (``required`` must be).
+
+    Raises:
+        ScenarioError: the file does not declare a required argument.
+    """
+    missing = [name for name in required if name not in description_args]
+    if missing:
+        msg = (
+            f"{where}: the launch file declares no arg {', '.join(missing)}: a scenario file "
+            "needs `- arg: {name: seed}` and `- arg: {name: out}` (passed to its observer's "
+            "output_dir), like visnav/scenarios/launch/car.launch.yaml"
+        )
+        raise ScenarioError(msg)
+    return {k: v for k, v in options.items() if k in description_args}
+
+
 def run_scenario(
     name: str,
     *,
@@ -225,78 +273,90 @@ def run_scenario(
     realtime: bool = False,
     view: bool = False,
     slam: bool = True,
-    ideal_sensors: bool = True,
+    ideal_sensors: bool = False,
+    launch_args: Mapping[str, str] | None = None,
     context: Context | None = None,
     progress: TextIO | None = sys.stderr,
 ) -> dict[str, Any]:
-    """Run a built-in scenario and return its summary (also written to ``summary.json``).
+    """Launch a scenario and return its summary (also written to ``summary.json``).
 
     Args:
-        name: ``car`` or ``drone``.
+        name: ``car``, ``drone`` or a YAML scenario launch file (it must declare the
+            args ``seed`` and ``out``; ``duration``, ``realtime``, ``slam`` and
+            ``ideal_sensors`` are passed when it declares them).
         seed: seeds the world, the sensors and the task.
-        duration_s: simulated seconds (default: the scenario's, 60 s for the car).
+        duration_s: simulated seconds (default: the scenario's, 240 s for the car).
         out: output directory (default ``runs/<UTC timestamp>``); must not hold a bag yet.
         record_all: also record raw images and point clouds.
         record_images: also record the camera images (not the point clouds).
         realtime: pace the simulation to the wall clock.
         view: stream the run to the Rerun viewer (needs ``visnav[viz]``).
-        slam: run the car's visual SLAM and score it (``slam`` summary key); off makes
-            ``visnav run car`` about 2.5x faster.
+        slam: run the car's visual SLAM and score it (``slam`` summary key).
         ideal_sensors: car: ground-truth odometry and noise-free cameras (the robot's
-            Xacro ``ideal_sensors:=true``; the default until SLAM publishes ``map -> odom``:
-            with the static ``map -> odom`` the odometry drift goes straight into
-            navigation); False: drifting wheel-encoder odometry and the camera / depth
-            noise models (summary key ``odometry.source``).
-        context: the graph context (default: a new one, with the Zenoh transport so other
-            processes see the run).
+            Xacro ``ideal_sensors:=true``), SLAM beside the navigation; False (default):
+            drifting wheel-encoder odometry, the camera / depth noise models and, with
+            ``slam``, SLAM in the loop (it publishes ``map -> odom``).
+        launch_args: more ``name: value`` launch arguments (``map``, ``goals``, ...).
+        context: the graph context of the shared nodes (default: a new one, with the
+            Zenoh transport so other processes see the run).
         progress: where the progress bar goes (None: no progress output).
 
     Returns:
         The summary dictionary.
 
     Raises:
-        ScenarioError: unknown scenario, a negative duration, or another simulation
-            publishing ``/clock`` in the same graph domain.
+        ScenarioError: unknown scenario, a negative duration, a launch file without a
+            lock-step ``sim`` node, or another simulation publishing ``/clock`` in the same
+            graph domain.
+        LaunchError: the launch file or an argument is bad.
     """
-    sdef = SCENARIOS.get(name)
-    if sdef is None:
-        close = difflib.get_close_matches(name, list(SCENARIOS), n=2)
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        msg = f"unknown scenario {name!r}: expected one of {', '.join(SCENARIOS)}{hint}"
-        raise ScenarioError(msg)
-    duration = sdef.duration_s if duration_s is None else float(duration_s)
-    if not (math.isfinite(duration) and duration > 0):
+    is_file = _is_file(name)
+    sdef = None if is_file else SCENARIOS.get(name)
+    path = Path(name) if is_file else launch_file(name)
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
         msg = f"duration is {duration_s!r}: expected a positive number of seconds"
         raise ScenarioError(msg)
     out_dir = _out_dir(out)
+    options = {
+        "seed": str(int(seed)),
+        "out": str(out_dir.absolute()),
+        "realtime": _bool(realtime),
+        "slam": _bool(slam),
+        "ideal_sensors": _bool(ideal_sensors),
+    }
+    if duration_s is not None:
+        options["duration"] = repr(float(duration_s))
+    declared = None
+    if is_file:  # which of the options the file declares
+        first = {"seed": options["seed"], "out": options["out"], **dict(launch_args or {})}
+        declared = load_launch(path, first).args
+    args = options if declared is None else scenario_args(declared, options, where=str(path))
+    if sdef is not None and sdef.name == "drone":
+        for key in ("slam", "ideal_sensors"):  # the drone has no SLAM and only ideal sensors
+            args.pop(key, None)
+    description = load_launch(path, {**args, **dict(launch_args or {})})
     out_dir.mkdir(parents=True, exist_ok=True)
-    bag_path = out_dir / "bag"
     own_ctx = context is None
     ctx = context if context is not None else Context()
     try:
         _refuse_a_second_simulation(ctx)
-        world = load_world(sdef.world, seed=seed)
-        robot_args = {"ideal_sensors": "true"} if ideal_sensors and sdef.robot == "car" else {}
-        if sdef.build is _build_car and ideal_sensors:
-            sdef = dataclasses.replace(sdef, build=functools.partial(_build_car, encoders=False))
-        spawn = RobotSpawn(source=sdef.robot, args=robot_args, namespace=sdef.namespace)
-        sim = Simulator(world, [spawn], context=ctx, seed=seed, realtime=realtime)
+        launcher = Launcher(description, domain=ctx.domain, context=ctx)
         try:
+            launcher.start()
+            label = sdef.name if sdef is not None else path.name
             return _run(
-                sdef,
-                ctx,
-                sim,
+                launcher,
+                label,
                 seed,
-                duration,
                 out_dir,
-                bag_path,
-                "all" if record_all else "images" if record_images else "",
+                record_all,
+                record_images,
                 view,
-                slam,
                 progress,
+                launch_file=None if sdef is not None else str(path),
             )
         finally:
-            sim.close()
+            launcher.shutdown()
     finally:
         if own_ctx:
             ctx.shutdown()
@@ -310,44 +370,68 @@ def _refuse_a_second_simulation(ctx: Context) -> None:
         raise ScenarioError(str(exc)) from None
 
 
+def _driver(launcher: Launcher, description: LaunchDescription) -> Any:
+    driver = launcher.lockstep_driver()
+    if driver is None:
+        msg = (
+            f"{description.source}: no shared `sim` node with `lockstep: true`: a scenario "
+            "is driven by its simulation; add `lockstep: true` to the sim node's params "
+            "(and leave it in the launch process)"
+        )
+        raise ScenarioError(msg)
+    if not driver.duration_s > 0:
+        msg = (
+            f"{description.source}: the sim node's duration is {driver.duration_s}: a "
+            "scenario must end; give the sim node a duration (e.g. `duration: $(arg duration)`)"
+        )
+        raise ScenarioError(msg)
+    return driver
+
+
 def _run(
-    sdef: ScenarioDef,
-    ctx: Context,
-    sim: Simulator,
+    launcher: Launcher,
+    label: str,
     seed: int,
-    duration: float,
     out_dir: Path,
-    bag_path: Path,
-    record: str,
+    record_all: bool,
+    record_images: bool,
     view: bool,
-    slam: bool,
     progress: TextIO | None,
+    *,
+    launch_file: str | None,
 ) -> dict[str, Any]:
-    tasks = sdef.build(ctx, sim, seed, slam)
-    counter = TopicCounter(ctx, lambda: sim.now_ns)
+    driver = _driver(launcher, launcher.description)
+    sim = driver.sim
+    ctx = launcher.context
+    bag_path = out_dir / "bag"
+    record = "all" if record_all else "images" if record_images else ""
+    left_out = () if record == "all" else _left_out_types(keep_images=record == "images")
+    counter = TopicCounter(ctx, lambda: sim.now_ns, skip_types=left_out)
     exclude = None if record == "all" else _bulky_exclusion(ctx, keep_images=record == "images")
     recorder = BagRecorder(
         ctx, None, bag_path, compression="zstd", exclude=exclude, use_sim_time=True
     )
     recorder.start()
     feed = _ViewFeed(ctx, out_dir, progress or sys.stderr) if view else None
-    bar = _Progress(sdef.name, duration, progress) if progress is not None else None
+    duration = float(driver.duration_s)
+    bar = _Progress(label, duration, progress) if progress is not None else None
     start_sim = sim.sim_time_s
     wall0 = time.perf_counter()
-    step_s = 0.1
     try:
-        while sim.sim_time_s - start_sim < duration - 1e-9 and ctx.ok:
+        while ctx.ok and not launcher.stopping:
             counter.poll()
             if feed is not None:
                 feed.poll()
-            chunk = min(step_s, duration - (sim.sim_time_s - start_sim))
-            sim.run(chunk, until=lambda: bool(tasks) and all(t.done() for t in tasks))
+            try:
+                more = driver.run_lockstep(_SLICE_S)
+            except SystemExit:  # the observer: the task is done
+                more = False
+            launcher.poll()
             if bar is not None:
                 wall = time.perf_counter() - wall0
-                bar.update(
-                    sim.sim_time_s - start_sim, (sim.sim_time_s - start_sim) / max(wall, 1e-9)
-                )
-            if tasks and all(t.done() for t in tasks):
+                done_s = sim.sim_time_s - start_sim
+                bar.update(done_s, done_s / max(wall, 1e-9))
+            if not more:
                 break
     except BaseException:
         if bar is not None:
@@ -361,26 +445,48 @@ def _run(
     sim_s = sim.sim_time_s - start_sim
     if bar is not None:
         bar.update(sim_s, sim_s / max(wall, 1e-9), final=True)
+    topics = counter.summary()
+    launcher.shutdown()  # the observer writes summary.json when it ends (if not yet)
+    task = _observer_summary(out_dir, launcher.description)
     summary: dict[str, Any] = {
-        "scenario": sdef.name,
+        "scenario": task.pop("scenario", label) if launch_file else label,
         "seed": seed,
         "sim_duration_s": round(sim_s, 6),
         "wall_duration_s": round(wall, 3),
         "real_time_factor": round(sim_s / wall, 4) if wall > 0 else None,
         "bag": str(bag_path),
-        "topics": counter.summary(),
+        "topics": topics,
     }
-    for task in tasks:
-        summary.update(task.results())
-        write_outputs = getattr(task, "write_outputs", None)
-        if callable(write_outputs):  # optional: files of the task (SLAM trajectories)
-            write_outputs(out_dir)
+    if launch_file is not None:
+        summary["launch_file"] = launch_file
+    for key in ("scenario", "seed", "sim_duration_s"):
+        task.pop(key, None)
+    summary.update(task)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
 
 
+def _observer_summary(out_dir: Path, description: LaunchDescription) -> dict[str, Any]:
+    """The observer's ``summary.json`` (its task keys); {} without an observer."""
+    path = out_dir / "summary.json"
+    if not any(n.executable == "scenario_observer" for n in description.nodes):
+        return {}
+    if not path.is_file():
+        msg = (
+            f"{description.source}: the scenario_observer wrote no {path}: give it "
+            "`output_dir: $(arg out)` (or read its log for the error)"
+        )
+        raise ScenarioError(msg)
+    data = json.loads(path.read_text())
+    return dict(data) if isinstance(data, dict) else {}
+
+
+def _left_out_types(*, keep_images: bool) -> tuple[str, ...]:
+    return tuple(t for t in _BULKY_TYPES if not (keep_images and t == "sensor_msgs/msg/Image"))
+
+
 def _bulky_exclusion(ctx: Context, *, keep_images: bool = False) -> str | None:
-    left_out = set(_BULKY_TYPES) - ({"sensor_msgs/msg/Image"} if keep_images else set())
+    left_out = set(_left_out_types(keep_images=keep_images))
     bulky = sorted(
         topic for topic, types in ctx.graph.topic_names_and_types() if set(types) & left_out
     )
@@ -434,5 +540,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines.append("")
     lines.append(f"{'topic':<40} {'type':<32} {'count':>7} {'rate Hz':>9}")
     for topic, t in summary["topics"].items():
+        if t["count"] is None:  # left out of the bag: not counted
+            lines.append(f"{topic:<40} {t['type']:<32} {'-':>7} {'-':>9}")
+            continue
         lines.append(f"{topic:<40} {t['type']:<32} {t['count']:>7} {t['rate_hz']:>9.2f}")
     return "\n".join(lines)

@@ -22,13 +22,20 @@ WALL_KEYS = ("wall_duration_s", "real_time_factor", "bag")
 """Summary keys that depend on the machine or the output path, not on the run."""
 
 
+def _without_cpu(value: Any) -> Any:
+    """A summary value without its CPU-time entries (``slam.cpu_s``: the machine's, too)."""
+    if isinstance(value, dict):
+        return {k: v for k, v in value.items() if not str(k).startswith("cpu_s")}
+    return value
+
+
 def summary_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     """The summary keys (but :data:`WALL_KEYS`) whose values differ, as ``key: a != b``."""
     out = []
     for key in sorted(set(a) | set(b)):
         if key in WALL_KEYS:
             continue
-        if a.get(key) != b.get(key):
+        if _without_cpu(a.get(key)) != _without_cpu(b.get(key)):
             out.append(f"{key}: {str(a.get(key))[:60]} != {str(b.get(key))[:60]}")
     return out
 

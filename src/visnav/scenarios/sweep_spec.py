@@ -2,7 +2,10 @@
 
 ``--seeds 0-99`` (a range, both ends included), ``--seeds 0,3,7`` or ``--seeds 4``;
 ``--set key=v1,v2`` (one option of :func:`~visnav.scenarios.runner.run_scenario`, the
-values one setting each; several ``--set`` give their cartesian product). Every run
+values one setting each; several ``--set`` give their cartesian product). The scenario is
+``car``, ``drone`` or a YAML scenario launch file: then the keys are the file's launch
+arguments (but ``seed`` and ``out``, which the sweep sets) plus ``record_all`` and
+``record_images``, each value checked by loading the file with it (``choices``). Every run
 gets its own directory ``runs/<setting>/<seed>`` and its own graph domain, derived
 from the sweep's random id and the run's index so that no two runs of a sweep share
 one, on one machine or across a cluster.
@@ -14,10 +17,12 @@ import dataclasses
 import itertools
 import math
 import re
-from collections.abc import Callable, Sequence
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
-from visnav.errors import VisnavError
+from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.runner import SCENARIOS
 
 __all__ = [
@@ -31,6 +36,7 @@ __all__ = [
     "expand_runs",
     "parse_seeds",
     "parse_sets",
+    "scenario_options",
     "setting_label",
 ]
 
@@ -38,7 +44,7 @@ DOMAIN_BASE = 1 << 30
 """Sweep run domains are ``DOMAIN_BASE + (sweep_id + index) mod 2**30`` (high, private)."""
 
 
-class SweepError(VisnavError, ValueError):
+class SweepError(ScenarioError):
     """Bad sweep input (seeds, settings, scenario, backend) or an unusable sweep directory."""
 
 
@@ -85,8 +91,68 @@ RUN_OPTIONS: dict[str, RunOption] = {
 """The seed-independent options of ``visnav run`` a sweep may vary (``--set KEY=...``)."""
 
 
-def _valid_keys() -> str:
-    return ", ".join(f"{k} ({o.type_name})" for k, o in RUN_OPTIONS.items())
+_FILE_RUNNER_KEYS = ("record_all", "record_images")
+"""``--set`` keys of a launch-file sweep that are options of the runner, not launch args."""
+_LAUNCH = "launch:"
+
+
+def _valid_keys(options: Mapping[str, RunOption] | None = None) -> str:
+    chosen = RUN_OPTIONS if options is None else options
+    return ", ".join(f"{k} ({o.type_name})" for k, o in chosen.items())
+
+
+def is_scenario_file(scenario: str) -> bool:
+    """Whether ``scenario`` names a launch file rather than a built-in scenario."""
+    return scenario not in SCENARIOS
+
+
+def _load_file(path: str, args: Mapping[str, str]) -> Any:
+    from visnav.errors import VisnavError  # noqa: PLC0415
+    from visnav.launch.loader import load_launch  # noqa: PLC0415
+
+    try:
+        with tempfile.TemporaryDirectory(prefix="visnav-sweep-check-") as tmp:
+            return load_launch(path, {"seed": "0", "out": tmp, **args})
+    except VisnavError as exc:
+        first = exc
+    try:  # does the file lack seed / out? then say so rather than "not declared"
+        declared = load_launch(path, dict(args)).args
+    except VisnavError:
+        declared = None
+    missing = [a for a in ("seed", "out") if declared is not None and a not in declared]
+    if missing:
+        msg = (
+            f"scenario file {path}: it declares no arg {', '.join(missing)}; a scenario "
+            "file needs `- arg: {name: seed}` and `- arg: {name: out}` (the observer's "
+            "output_dir), like visnav/scenarios/launch/car.launch.yaml"
+        )
+        raise SweepError(msg)
+    raise SweepError(str(first)) from None
+
+
+def scenario_options(scenario: str) -> dict[str, RunOption]:
+    """The ``--set`` keys of ``scenario``: :data:`RUN_OPTIONS`, or a launch file's args.
+
+    Raises:
+        SweepError: the launch file does not load or declares no ``seed`` / ``out`` arg.
+    """
+    if not is_scenario_file(scenario):
+        return dict(RUN_OPTIONS)
+    description = _load_file(scenario, {})
+    out = {k: RUN_OPTIONS[k] for k in _FILE_RUNNER_KEYS}
+    for name, info in description.args.items():
+        if name in ("seed", "out") or name in out:
+            continue
+
+        def check(text: str, name: str = name) -> str:
+            _load_file(scenario, {name: text})
+            return text
+
+        default = "required" if info.default is None else f"default {info.default!r}"
+        out[name] = RunOption(
+            _LAUNCH + name, f"launch arg, {default}", check, info.description or name
+        )
+    return out
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -118,25 +184,35 @@ def parse_seeds(text: str) -> list[int]:
     return list(dict.fromkeys(seeds))
 
 
-def parse_sets(items: Sequence[str]) -> dict[str, list[Any]]:
+def parse_sets(
+    items: Sequence[str], options: Mapping[str, RunOption] | None = None
+) -> dict[str, list[Any]]:
     """Parse ``--set key=v1,v2`` items into ``{key: [values]}`` (keys in given order).
+
+    Args:
+        items: the ``--set`` values.
+        options: the valid keys (default :data:`RUN_OPTIONS`; a launch file's:
+            :func:`scenario_options`).
 
     Raises:
         SweepError: no ``=``, an unknown key, a repeated key, an empty value list or a
             value of the wrong type; the message lists the valid keys with their types.
     """
+    valid = RUN_OPTIONS if options is None else options
     out: dict[str, list[Any]] = {}
     for item in items:
         key, sep, values = item.partition("=")
-        key = key.strip().replace("-", "_")
-        if not sep or key not in RUN_OPTIONS:
+        key = key.strip()
+        if key not in valid:
+            key = key.replace("-", "_")
+        if not sep or key not in valid:
             what = f"unknown key {key!r}" if sep else "no '=' in it"
-            msg = f"--set {item!r}: {what}; expected KEY=V1,V2 with KEY one of {_valid_keys()}"
+            msg = f"--set {item!r}: {what}; expected KEY=V1,V2 with KEY one of {_valid_keys(valid)}"
             raise SweepError(msg)
         if key in out:
             msg = f"--set {item!r}: {key} is set twice; give all its values in one --set"
             raise SweepError(msg)
-        option = RUN_OPTIONS[key]
+        option = valid[key]
         parsed: list[Any] = []
         for raw in values.split(","):
             try:
@@ -144,7 +220,7 @@ def parse_sets(items: Sequence[str]) -> dict[str, list[Any]]:
             except ValueError:
                 msg = (
                     f"--set {item!r}: {key}={raw!r} is not a {option.type_name}; valid keys: "
-                    f"{_valid_keys()}"
+                    f"{_valid_keys(valid)}"
                 )
                 raise SweepError(msg) from None
         out[key] = list(dict.fromkeys(parsed))
@@ -194,7 +270,16 @@ class RunSpec:
 
     def run_kwargs(self) -> dict[str, Any]:
         """The keyword arguments of :func:`run_scenario` for this run (not ``out``)."""
-        kwargs = {RUN_OPTIONS[k].keyword: v for k, v in self.options.items()}
+        kwargs: dict[str, Any] = {}
+        launch: dict[str, str] = {}
+        file = is_scenario_file(self.scenario)
+        for key, value in self.options.items():
+            if file and key not in _FILE_RUNNER_KEYS:
+                launch[key] = _format_value(value)
+            else:
+                kwargs[RUN_OPTIONS[key].keyword] = value
+        if launch:
+            kwargs["launch_args"] = launch
         return {"seed": self.seed, **kwargs}
 
     def to_json(self) -> dict[str, Any]:
@@ -215,19 +300,21 @@ class RunSpec:
 
 
 def check_scenario(name: str) -> str:
-    """Return ``name`` if it is a built-in scenario, else raise a one-line error.
+    """Return a built-in scenario's name, or a scenario launch file's absolute path.
 
     Raises:
-        SweepError: a scenario file or an unknown name (``visnav run`` runs only the
-            built-in scenarios, so a sweep does too).
+        SweepError: neither a built-in scenario nor an existing YAML launch file.
     """
     if name in SCENARIOS:
         return name
+    path = Path(name)
+    if path.suffix in (".yaml", ".yml") and path.is_file():
+        return str(path.absolute())
     looks_like_file = "/" in name or "." in name
-    what = "scenario files are not supported yet" if looks_like_file else "unknown scenario"
+    what = "no such YAML launch file (.yaml)" if looks_like_file else "not a built-in scenario"
     msg = (
-        f"scenario {name!r}: {what}; visnav run (and so visnav sweep) runs the built-in "
-        f"scenarios {', '.join(SCENARIOS)}"
+        f"scenario {name!r}: {what}; expected {', '.join(SCENARIOS)} or the path of a "
+        "scenario launch file (see visnav/scenarios/launch/car.launch.yaml)"
     )
     raise SweepError(msg)
 

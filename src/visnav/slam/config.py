@@ -169,6 +169,7 @@ class TrackResult:
         reinitialized: tracking restarted from the odometry prior after a loss.
         warnings: problems noticed with this frame's inputs.
         timings: seconds per stage (features, matching, pose, mapping, loop).
+        cpu_timings: CPU seconds per stage (the tracking thread's).
     """
 
     stamp_ns: int
@@ -181,3 +182,4 @@ class TrackResult:
     reinitialized: bool = False
     warnings: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
+    cpu_timings: dict[str, float] = field(default_factory=dict)

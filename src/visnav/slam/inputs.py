@@ -21,18 +21,25 @@ STAGES = ("features", "matching", "pose", "mapping", "loop")
 
 @dataclass
 class Stopwatch:
-    """Accumulates wall time per stage; :meth:`start` switches stage."""
+    """Accumulates wall time and thread CPU time per stage; :meth:`start` switches stage.
+
+    CPU time (:attr:`cpu`) is what a stage costs on a loaded machine, where wall time
+    also counts the other processes' turns.
+    """
 
     times: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    cpu: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
     _t: float = 0.0
+    _c: float = 0.0
     _stage: str = ""
 
     def start(self, stage: str) -> None:
         """End the running stage (if any) and start ``stage`` ("" starts none)."""
-        now = time.perf_counter()
+        now, cpu = time.perf_counter(), time.thread_time()
         if self._stage:
             self.times[self._stage] += now - self._t
-        self._stage, self._t = stage, now
+            self.cpu[self._stage] += cpu - self._c
+        self._stage, self._t, self._c = stage, now, cpu
 
     def stop(self) -> dict[str, float]:
         """End the running stage; return seconds per stage."""

@@ -58,7 +58,7 @@ class LoopCloser:
         config: SlamConfig,
         *,
         vocabulary: Vocabulary | None = None,
-        global_ba: Callable[[], None] | None = None,
+        global_ba: Callable[[], object] | None = None,
     ) -> None:
         self.map = slam_map
         self.camera = camera

@@ -36,6 +36,7 @@ initialisation, and bundle adjustment and tracking carry it on only approximatel
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -49,7 +50,7 @@ from visnav.slam.errors import SlamInputError
 from visnav.slam.features import Frame
 from visnav.slam.geometry import CHI2_MONO, inverse, transform
 from visnav.slam.matching import TH_LOW, match_descriptors
-from visnav.slam.optimizer import bundle_adjustment
+from visnav.slam.optimizer import BaResult, bundle_adjustment
 from visnav.slam.slam_map import Keyframe, SlamMap
 
 __all__ = [
@@ -404,8 +405,12 @@ def create_initial_map(
     depth_m: NDArray[np.float32] | None = None,
     min_depth: float = 0.1,
     max_depth: float = 8.0,
+    on_ba: Callable[[BaResult], None] | None = None,
 ) -> tuple[Keyframe, Keyframe]:
     """Add the two initial keyframes and their points, bundle-adjust, set the scale.
+
+    ``on_ba`` receives the two-view bundle adjustment's result (a failed solver leaves
+    the two-view geometry as it was; the caller counts and reports it).
 
     The bundle adjustment holds the reference keyframe; afterwards the map is
     rescaled about it (bundle adjustment cannot observe scale): with ``depth_m``
@@ -434,7 +439,7 @@ def create_initial_map(
     slam_map.update_connections(kf0)
     slam_map.update_connections(kf1)
     baseline = float(np.linalg.norm(view.t_cr[:3, 3]))
-    bundle_adjustment(
+    ba = bundle_adjustment(
         slam_map,
         cam,
         [kf0.id, kf1.id],
@@ -442,6 +447,8 @@ def create_initial_map(
         fixed_ids=[kf0.id],
         iterations=iterations,
     )
+    if on_ba is not None:
+        on_ba(ba)
     centre0 = t_wc_ref[:3, 3]
     centre1 = kf1.t_wc[:3, 3]
     after = float(np.linalg.norm(centre1 - centre0))

@@ -37,23 +37,40 @@ stamps alone, never on the wall clock, so a run stays deterministic. With
 motion and restarts tracking after a loss; without it tracking is purely visual
 (constant-velocity model) and odometry only anchors the map frame at the first frame.
 
+SLAM in the loop (``publish_tf``): ``map -> odom`` is refreshed from tracked frames only.
+While tracking is lost it is not republished, so its stamp ages and a navigation stack
+that checks its robot pose's age (move_base's costmaps, ``transform_tolerance``) stops
+the robot until SLAM relocalises (each loss and recovery is logged). ``set_initial_pose``
+with ``initial_pose.x`` / ``.y`` / ``.yaw`` (nav2 AMCL's names) puts ``base_frame`` at
+that pose of the map at the first frame (default: the map starts equal to ``odom``).
+``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``) carries the counters every
+``diagnostic_period`` s (1.0; 0: only on loss and recovery).
+
+Where the system runs (:mod:`visnav.slam.worker`): ``worker`` ``inline`` (the node's
+thread) or ``process`` (a process of its own, another core). ``result_latency`` (s of
+stamp time, default 0) applies the result of the frame stamped ``t`` at clock time ``t +
+result_latency`` exactly, waiting for it if the worker is not done: a fixed delay, not
+"whatever is finished", so a run gives the same trajectory whatever the wall-clock speed
+or the worker (a one-frame latency is what the process worker needs to overlap with a
+lock-step simulator). With 0 the result is applied in the frame's callback.
+
 Inputs that cannot be used (a camera_info that changes or disagrees with the
-image, an implausible depth scale) are logged once per distinct problem and the
-frame dropped; a SLAM scale that disagrees with wheel odometry by 5x or more is
-reported as a likely depth unit error.
+image, an implausible depth scale) are logged (each kind at most once per 5 s, through
+the logger's ``throttle_duration_sec``) and the frame dropped; a SLAM scale that
+disagrees with wheel odometry by 5x or more is reported as a likely depth unit error.
 """
 
 from __future__ import annotations
 
-import re
-from typing import Any
+from collections import deque
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from visnav import message_filters
 from visnav.errors import VisnavError
-from visnav.graph.node import Node
+from visnav.graph.node import Node, NodeOptions
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import xyz_to_cloud
 from visnav.msgs.serde import get_message_class
@@ -68,20 +85,24 @@ from visnav.msgs.types import (
     TransformStamped,
 )
 from visnav.slam.camera import CameraIntrinsics
-from visnav.slam.config import SlamConfig
+from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
-from visnav.slam.vocabulary import Vocabulary
+from visnav.slam.worker import WORKERS, InlineWorker, SlamStats, SlamWorker, make_worker
 from visnav.tf import Buffer, TransformException, matrix_to_pose, matrix_to_transform
 from visnav.tf.ros import TransformBroadcaster, TransformListener
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = ["SlamNode"]
 
 FloatArray = NDArray[np.float64]
 
 _COLOUR = {"rgb8": None, "bgr8": "swap", "rgba8": "drop", "bgra8": "swapdrop"}
+_LOG_PERIOD_S = 5.0  # a repeated warning or error is logged at most once per 5 s
 
 
 def _image_array(msg: Image) -> NDArray[Any]:
@@ -107,7 +128,7 @@ class SlamNode(Node):
         **node_kwargs: passed to :class:`~visnav.graph.Node` (context, namespace, ...).
     """
 
-    def __init__(self, name: str = "slam", **node_kwargs: Any) -> None:
+    def __init__(self, name: str = "slam", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         p = self.declare_parameter
         self.map_frame = str(p("map_frame", "map").value)
@@ -124,7 +145,22 @@ class SlamNode(Node):
         self._path_sent_ns: int | None = None
         dense_period = float(p("dense_cloud_period", 0.0).value)
         self.dense_voxel = float(p("dense_voxel", 0.05).value)
-        vocab_path = str(p("vocabulary", "").value)
+        self.vocabulary_path = str(p("vocabulary", "").value)
+        self.worker_kind = str(p("worker", "inline").value)
+        if self.worker_kind not in WORKERS:
+            text = f"worker {self.worker_kind!r}: expected one of {', '.join(WORKERS)}"
+            raise SlamInputError(text)
+        latency = float(p("result_latency", 0.0).value)
+        if not (latency >= 0.0 and np.isfinite(latency)):
+            text = f"result_latency {latency}: expected seconds >= 0 (0: apply at once)"
+            raise SlamInputError(text)
+        self._latency_ns = round(latency * 1e9)
+        self._initial_pose: FloatArray | None = None
+        if bool(p("set_initial_pose", value=False).value):
+            x = float(p("initial_pose.x", 0.0).value)
+            y = float(p("initial_pose.y", 0.0).value)
+            yaw = float(p("initial_pose.yaw", 0.0).value)
+            self._initial_pose = _planar_pose(x, y, yaw)
         rate = float(p("max_frame_rate", 0.0).value)
         if not (rate >= 0.0 and np.isfinite(rate)):
             text = f"max_frame_rate {rate}: expected a rate in Hz >= 0 (0 processes every frame)"
@@ -145,11 +181,17 @@ class SlamNode(Node):
             mono_scale=str(p("mono_scale", "depth").value),  # type: ignore[arg-type]
             final_global_ba=False,
         )
-        self.vocabulary = Vocabulary.load(vocab_path) if vocab_path else None
-        self.system: SlamSystem | None = None
+        self.worker: SlamWorker | None = None
+        self._in_flight: deque[tuple[int, FloatArray]] = deque()  # stamp, T_odom_base
+        self.tracking = False
+        self.cpu_s = 0.0  # the worker's CPU time on frames (its process or this thread)
+        self._stats = SlamStats()
+        self._diag = _SlamDiagnostics(self)
+        diag_period = float(p("diagnostic_period", 1.0).value)
+        if diag_period > 0:  # 0: only on loss and recovery
+            self.create_timer(diag_period, self._publish_diagnostics)
         self.camera: CameraIntrinsics | None = None
         self._info_key: tuple[float, ...] | None = None
-        self._reported: set[str] = set()
         self.dropped = 0
         self.t_map_odom: FloatArray | None = None
         self._t_base_cam: FloatArray | None = None
@@ -183,22 +225,14 @@ class SlamNode(Node):
         self._sync.register_callback(self._on_frame)
         if self.publish_tf and tf_period > 0:
             self.create_timer(tf_period, self._publish_tf)
+        if self._latency_ns > 0:  # results are due on the clock, between frames too
+            self.create_timer(min(0.005, latency / 2), self._apply_due)
         if map_period > 0:
             self.create_timer(map_period, self._publish_map)
         if dense_period > 0:
             self.create_timer(dense_period, self._publish_dense)
 
     # ---------------------------------------------------------------- helpers
-
-    def _report(self, text: str, *, error: bool = True) -> None:
-        key = re.sub(r"[-+]?\d[\d.e+-]*", "#", text)  # one report per kind of problem
-        if key in self._reported:
-            return
-        self._reported.add(key)
-        if error:
-            self.get_logger().error(text)
-        else:
-            self.get_logger().warning(text)
 
     def _lookup(self, target: str, source: str, stamp_ns: int) -> FloatArray | None:
         try:
@@ -207,9 +241,9 @@ class SlamNode(Node):
             try:
                 return self.tf_buffer.lookup_transform_matrix(target, source, 0)
             except TransformException as exc:
-                self._report(
+                self.get_logger().warning(
                     f"waiting for TF {target} -> {source} ({exc}); SLAM starts when it exists",
-                    error=False,
+                    throttle_duration_sec=_LOG_PERIOD_S,
                 )
                 return None
 
@@ -219,8 +253,8 @@ class SlamNode(Node):
             cam, warnings = CameraIntrinsics.from_camera_info(
                 info, source=self.resolve_topic_name("rgb/camera_info")
             )
-            for w in warnings:
-                self._report(w, error=False)
+            for w in warnings:  # once: the first camera_info only
+                self.get_logger().warning(w)
             self.camera, self._info_key = cam, key
         elif key != self._info_key:
             text = (
@@ -229,10 +263,10 @@ class SlamNode(Node):
             )
             raise SlamInputError(text)
         if info.header.frame_id and image.header.frame_id != info.header.frame_id:
-            self._report(
+            self.get_logger().warning(
                 f"image frame_id {image.header.frame_id!r} differs from camera_info frame_id "
                 f"{info.header.frame_id!r}; using the image's",
-                error=False,
+                once=True,
             )
         return self.camera
 
@@ -244,7 +278,10 @@ class SlamNode(Node):
             self._process(image, depth, info)
         except VisnavError as exc:
             self.dropped += 1
-            self._report(f"dropped a frame: {exc}")
+            self.get_logger().error(
+                f"dropped a frame ({self.dropped} so far): {exc}",
+                throttle_duration_sec=_LOG_PERIOD_S,
+            )
 
     def _process(self, image: Image, depth: Image | None, info: CameraInfo) -> None:
         stamp = time_to_ns(image.header.stamp)
@@ -263,12 +300,14 @@ class SlamNode(Node):
             if found is None:
                 return
             t_odom_base = found
-        if self.system is None:
-            self.system = SlamSystem(
+        if self.worker is None:
+            start = self._initial_pose if self._initial_pose is not None else t_odom_base
+            self.worker = make_worker(
+                self.worker_kind,
                 cam,
                 self.config,
-                vocabulary=self.vocabulary,
-                initial_pose=t_odom_base @ self._t_base_cam,
+                vocabulary_path=self.vocabulary_path,
+                initial_pose=start @ self._t_base_cam,
             )
         depth_arr = None if depth is None else image_to_numpy(depth)
         if depth is not None and depth.encoding not in ("16UC1", "32FC1", "mono16"):
@@ -280,11 +319,52 @@ class SlamNode(Node):
             else None
         )
         self._last_stamp = stamp
-        result = self.system.track(_image_array(image), depth_arr, stamp, odom_pose=odom_pose)
-        for w in result.warnings:
-            self._report(w.split(": ", 1)[-1] if w.startswith("frame ") else w, error=False)
-        if result.t_wc is None:
+        self.worker.submit(_image_array(image), depth_arr, stamp, odom_pose)
+        self._in_flight.append((stamp, t_odom_base))
+        if self._latency_ns == 0:
+            self._apply_due()
+
+    def _apply_due(self) -> None:
+        """Apply every result whose time (stamp + ``result_latency``) has come, in order."""
+        if self.worker is None:
             return
+        now = self.get_clock().now_ns()
+        while self._in_flight and (
+            self._latency_ns == 0 or self._in_flight[0][0] + self._latency_ns <= now
+        ):
+            stamp, t_odom_base = self._in_flight.popleft()
+            out = self.worker.next_result()  # waits for the worker: the barrier
+            self.cpu_s += out.cpu_s
+            if out.stats is not None:
+                self._stats = out.stats
+            if out.result is None:
+                self.dropped += 1
+                self.get_logger().error(
+                    f"dropped a frame ({self.dropped} so far): {out.error}",
+                    throttle_duration_sec=_LOG_PERIOD_S,
+                )
+                continue
+            self._apply(out.result, stamp, t_odom_base)
+
+    def _apply(self, result: TrackResult, stamp: int, t_odom_base: FloatArray) -> None:
+        assert self._t_base_cam is not None  # set before the first frame was submitted
+        for w in result.warnings:
+            self.get_logger().warning(w, throttle_duration_sec=_LOG_PERIOD_S)
+        if result.t_wc is None:
+            if self.tracking:
+                self.tracking = False
+                self.get_logger().warning(
+                    f"tracking lost at {stamp * 1e-9:.3f} s: {self.map_frame} -> "
+                    f"{self.odom_frame or self.base_frame} is not refreshed until SLAM "
+                    "relocalises"
+                )
+                self._publish_diagnostics()
+            return
+        if not self.tracking and self.t_map_odom is not None:
+            self.get_logger().info(f"tracking again at {stamp * 1e-9:.3f} s")
+            self.tracking = True
+            self._publish_diagnostics()
+        self.tracking = True
         t_map_base = result.t_wc @ inverse(self._t_base_cam)
         self.t_map_odom = t_map_base @ inverse(t_odom_base)
         self._check_scale(t_map_base, t_odom_base)
@@ -310,14 +390,26 @@ class SlamNode(Node):
         self.skipped += 1
         return True
 
+    @property
+    def system(self) -> SlamSystem | None:
+        """The SLAM system when it runs in this process (``worker: inline``), else None."""
+        return self.worker.system if isinstance(self.worker, InlineWorker) else None
+
+    def stats(self) -> SlamStats:
+        """The system's counters as of the last applied result (zeros before it)."""
+        return self._stats
+
+    def _publish_diagnostics(self) -> None:
+        self._diag.publish(self._stats, tracking=self.tracking, started=self.worker is not None)
+
     def trajectory(self) -> Trajectory:
         """Poses of ``base_frame`` in the map for all tracked frames (loop corrections applied).
 
         Before the camera's mounting is known (no frame processed) the trajectory is empty.
         """
-        if self.system is None or self._t_base_cam is None:
+        if self.worker is None or self._t_base_cam is None:
             return Trajectory.empty()
-        traj = self.system.trajectory()
+        traj = self.worker.trajectory()
         if len(traj) == 0:
             return traj
         t_cb = inverse(self._t_base_cam)
@@ -336,15 +428,15 @@ class SlamNode(Node):
         self._scale_checked = True
         ratio = d_slam / d_odom
         if ratio > 5.0 or ratio < 0.2:
-            self._report(
+            self.get_logger().error(  # checked once (_scale_checked)
                 f"SLAM moved {d_slam:.3f} m while odometry moved {d_odom:.3f} m (ratio "
                 f"{ratio:.3g}): the depth scale is probably wrong (16UC1 must be millimetres "
                 "with depth_scale 1000, 32FC1 metres)"
             )
 
     def _rebuild_path(self) -> None:
-        assert self.system is not None
-        traj = self.system.trajectory()
+        assert self.worker is not None
+        traj = self.worker.trajectory()
         mats = traj.matrices()
         t_cb = inverse(self._t_base_cam) if self._t_base_cam is not None else np.eye(4)
         self._path = [
@@ -356,7 +448,7 @@ class SlamNode(Node):
         ]
 
     def _publish_tf(self) -> None:
-        if not self.publish_tf or self.t_map_odom is None:
+        if not self.publish_tf or self.t_map_odom is None or not self.tracking:
             return
         stamp = self.get_clock().now_ns() + round(self.transform_tolerance * 1e9)
         child = self.odom_frame or self.base_frame
@@ -368,18 +460,85 @@ class SlamNode(Node):
         self._broadcaster.send_transform(msg)
 
     def _publish_map(self) -> None:
-        if self.system is None:
+        if self.worker is None:
             return
         header = Header(stamp=ns_to_time(self.get_clock().now_ns()), frame_id=self.map_frame)
-        self._map_pub.publish(xyz_to_cloud(self.system.map_cloud(), header=header))
+        self._map_pub.publish(xyz_to_cloud(self.worker.map_cloud(), header=header))
 
     def _publish_dense(self) -> None:
-        if self.system is None:
+        if self.worker is None:
             return
-        pts, rgb = self.system.dense_cloud(self.dense_voxel)
+        pts, rgb = self.worker.dense_cloud(self.dense_voxel)
         header = Header(stamp=ns_to_time(self.get_clock().now_ns()), frame_id=self.map_frame)
         self._dense_pub.publish(xyz_to_cloud(pts, header=header, rgb=rgb))
 
     def _on_dense_request(self, msg: Any) -> None:
         del msg
         self._publish_dense()
+
+    def destroy_node(self) -> None:
+        """Stop the worker (its process, if any), then remove the node."""
+        worker = getattr(self, "worker", None)  # None when __init__ refused a parameter
+        if worker is not None:
+            worker.close()
+        super().destroy_node()
+
+
+class _SlamDiagnostics:
+    """``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``, as diagnostic_updater).
+
+    One status named after the node, every ``diagnostic_period`` s and when tracking is
+    lost or regained: level OK while tracking, WARN while lost (message says so), and the
+    counters ``frames``, ``tracking_lost``, ``relocalized``, ``reinitialized``,
+    ``keyframes``, ``loop_closures``, ``skipped``, ``dropped``, ``ba_runs``,
+    ``ba_failures``, ``cpu_s`` and ``cpu_s.<stage>``. rtabmap reports these on its own
+    ``rtabmap/info`` message type; a standard type lets any ROS tool read them.
+    """
+
+    def __init__(self, node: SlamNode) -> None:
+        self._node = node
+        self._status = get_message_class("diagnostic_msgs/msg/DiagnosticStatus")
+        self._kv = get_message_class("diagnostic_msgs/msg/KeyValue")
+        array = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
+        self._pub = node.create_publisher(array, "/diagnostics", 100)
+
+    def publish(self, s: SlamStats, *, tracking: bool, started: bool) -> None:
+        node = self._node
+        values = {
+            "frames": s.frames,
+            "tracking_lost": s.lost,
+            "relocalized": s.relocalized,
+            "reinitialized": s.reinitialized,
+            "keyframes": s.keyframes,
+            "loop_closures": s.loops,
+            "skipped": node.skipped,
+            "dropped": node.dropped,
+            "ba_runs": s.ba_runs,
+            "ba_failures": s.ba_failures,
+            "cpu_s": round(s.cpu_s, 4),
+            **{f"cpu_s.{k}": round(v, 4) for k, v in sorted(s.stage_cpu_s.items())},
+        }
+        if not started:
+            level, text = 0, "waiting for the first frame"
+        elif tracking:
+            level, text = 0, "tracking"
+        else:
+            level, text = 1, "tracking lost: relocalising (map -> odom not refreshed)"
+        status = self._status(
+            level=level,
+            name=node.get_fully_qualified_name(),
+            message=text,
+            hardware_id="",
+            values=[self._kv(key=k, value=str(v)) for k, v in values.items()],
+        )
+        header = Header(stamp=ns_to_time(node.get_clock().now_ns()), frame_id="")
+        self._pub.publish(self._pub.msg_type(header=header, status=[status]))
+
+
+def _planar_pose(x: float, y: float, yaw: float) -> FloatArray:
+    """``T_map_base`` of a pose on the ground plane."""
+    out = np.eye(4)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out[:2, :2] = [[c, -s], [s, c]]
+    out[0, 3], out[1, 3] = x, y
+    return out

@@ -56,7 +56,11 @@ class LoopConstraint:
 
 @dataclass(frozen=True)
 class BaResult:
-    """What a bundle adjustment did."""
+    """What a bundle adjustment did.
+
+    ``error`` is the solver's failure text (gtsam raised: an indeterminate system, a
+    point behind a camera...); the map is then left as it was.
+    """
 
     keyframes: int
     fixed: int
@@ -65,6 +69,12 @@ class BaResult:
     outliers: int
     error_before: float
     error_after: float
+    error: str = ""
+
+    @property
+    def ok(self) -> bool:
+        """True when the solver ran to the end."""
+        return not self.error
 
 
 def _gtsam() -> Any:
@@ -128,7 +138,8 @@ def bundle_adjustment(
         min_observations: points with fewer observations in the problem are left out.
 
     Returns:
-        Sizes, outliers removed and the error before/after.
+        Sizes, outliers removed and the error before/after; a solver failure is in
+        ``error`` (the map is then unchanged).
     """
     gtsam = _gtsam()
     local = sorted({k for k in keyframe_ids if not slam_map.keyframes[k].bad})
@@ -186,8 +197,11 @@ def bundle_adjustment(
     before = float(graph.error(values))
     try:
         result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-    except RuntimeError:
-        return BaResult(len(local), len(fixed), len(used_points), len(obs_list), 0, before, before)
+    except RuntimeError as exc:
+        text = f"bundle adjustment of {len(local)} keyframes failed in gtsam: {exc}"
+        return BaResult(
+            len(local), len(fixed), len(used_points), len(obs_list), 0, before, before, text
+        )
     after = float(graph.error(result))
     for k in sorted(involved - fixed):
         slam_map.keyframes[k].t_cw = inverse(result.atPose3(k).matrix())

@@ -20,7 +20,6 @@ and bundle adjustment move the whole trajectory (:meth:`SlamSystem.trajectory`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -28,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from visnav.slam.camera import CameraIntrinsics
-from visnav.slam.clouds import depth_samples, voxel_average
+from visnav.slam.clouds import depth_samples
 from visnav.slam.config import SlamConfig, TrackingState, TrackResult
 from visnav.slam.dense import DenseTracker
 from visnav.slam.features import Frame, OrbExtractor
@@ -51,10 +50,11 @@ from visnav.slam.monocular import (
     mono_ba_window,
     triangulate_new_points,
 )
-from visnav.slam.optimizer import LoopConstraint, bundle_adjustment
+from visnav.slam.optimizer import BaResult, LoopConstraint, bundle_adjustment
 from visnav.slam.place_recognition import Localization, localize_in_map
 from visnav.slam.slam_map import Keyframe, SlamMap
-from visnav.slam.trajectory import Trajectory
+from visnav.slam.system_outputs import FrameRecord as _FrameRecord
+from visnav.slam.system_outputs import SystemOutputs
 from visnav.slam.vocabulary import Vocabulary
 
 __all__ = ["STAGES", "SlamSystem"]
@@ -63,14 +63,7 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-@dataclass
-class _FrameRecord:
-    stamp_ns: int
-    ref_kf: int
-    t_c_ref: FloatArray
-
-
-class SlamSystem:
+class SlamSystem(SystemOutputs):
     """RGB-D SLAM on one rectified camera.
 
     Args:
@@ -126,6 +119,10 @@ class SlamSystem:
         self.n_relocalized = 0
         self.n_reinitialized = 0
         self.timings: list[dict[str, float]] = []
+        self.ba_runs = 0
+        self.ba_failures = 0
+        self.ba_last_error = ""
+        self._ba_warnings: list[str] = []
         self._records: list[_FrameRecord] = []
         self._last: Frame | None = None
         self._last_rec: _FrameRecord | None = None
@@ -270,6 +267,9 @@ class SlamSystem:
             )
         timings = sw.stop()
         self.timings.append(timings)
+        if self._ba_warnings:
+            warnings.extend(f"frame {stamp_ns}: {w}" for w in self._ba_warnings)
+            self._ba_warnings.clear()
         return TrackResult(
             stamp_ns=int(stamp_ns),
             state=self.state,
@@ -281,6 +281,7 @@ class SlamSystem:
             reinitialized=reinit,
             warnings=tuple(warnings),
             timings=timings,
+            cpu_timings=dict(sw.cpu),
         )
 
     def _initialize(
@@ -324,6 +325,7 @@ class SlamSystem:
             depth_m=self._mono.ref_depth if self.config.mono_scale == "depth" else None,
             min_depth=self.config.min_depth,
             max_depth=self.config.max_depth,
+            on_ba=self._note_ba,
         )
         self._records.append(_FrameRecord(ref.stamp_ns, kf0.id, np.eye(4)))
         self._ref_kf = kf1.id
@@ -591,12 +593,14 @@ class SlamSystem:
             window = [kf.id, *kf.best_covisibles(cfg.local_window - 1)]
             if self._mono is not None:
                 window = mono_ba_window(window)
-            bundle_adjustment(
-                m,
-                self.camera,
-                window,
-                inv_sigma2_levels=self.extractor.inv_level_sigma2,
-                iterations=cfg.ba_iterations,
+            self._note_ba(
+                bundle_adjustment(
+                    m,
+                    self.camera,
+                    window,
+                    inv_sigma2_levels=self.extractor.inv_level_sigma2,
+                    iterations=cfg.ba_iterations,
+                )
             )
         self._last_kf_frame = self.n_frames
         self._ref_kf = kf.id
@@ -620,12 +624,25 @@ class SlamSystem:
         """The bag-of-words vocabulary (None until trained)."""
         return self.loop_closer.vocabulary
 
-    def global_bundle_adjustment(self, iterations: int | None = None) -> None:
-        """Optimise every keyframe pose (but the first) and map point together."""
+    def _note_ba(self, result: BaResult) -> None:
+        """Count a bundle adjustment; a solver failure becomes a warning of this frame."""
+        self.ba_runs += 1
+        if not result.ok:
+            self.ba_failures += 1
+            self.ba_last_error = result.error
+            self._ba_warnings.append(f"{result.error} (the map keeps its previous poses)")
+
+    def global_bundle_adjustment(self, iterations: int | None = None) -> BaResult | None:
+        """Optimise every keyframe pose (but the first) and map point together.
+
+        Returns:
+            The adjustment's result (also counted in ``ba_runs`` / ``ba_failures``), or
+            None with fewer than two keyframes.
+        """
         ids = [kf.id for kf in self.map.keyframes if not kf.bad]
         if len(ids) < 2:
-            return
-        bundle_adjustment(
+            return None
+        result = bundle_adjustment(
             self.map,
             self.camera,
             ids,
@@ -634,6 +651,8 @@ class SlamSystem:
             iterations=iterations or self.config.global_ba_iterations,
             min_observations=2,
         )
+        self._note_ba(result)
+        return result
 
     # ----------------------------------------------------------------- output
 
@@ -647,48 +666,6 @@ class SlamSystem:
         self._records.append(rec)
         self._last = frame
         self._last_rec = rec
-
-    def current_pose(self) -> FloatArray | None:
-        """``T_map_camera`` of the last tracked frame, with corrections applied (None before)."""
-        if self._last_rec is None:
-            return None
-        rec = self._last_rec
-        return inverse(rec.t_c_ref @ self.map.keyframes[rec.ref_kf].t_cw)
-
-    def trajectory(self) -> Trajectory:
-        """Camera poses of all tracked frames in the map frame (loop corrections applied)."""
-        if not self._records:
-            return Trajectory.empty()
-        stamps = np.array([r.stamp_ns for r in self._records], dtype=np.float64) * 1e-9
-        mats = np.stack(
-            [inverse(r.t_c_ref @ self.map.keyframes[r.ref_kf].t_cw) for r in self._records]
-        )
-        return Trajectory.from_matrices(stamps, mats)
-
-    def keyframe_trajectory(self) -> Trajectory:
-        """Keyframe camera poses in the map frame."""
-        kfs = [kf for kf in self.map.keyframes if not kf.bad]
-        stamps = np.array([kf.stamp_ns for kf in kfs], dtype=np.float64) * 1e-9
-        if not kfs:
-            return Trajectory.empty()
-        return Trajectory.from_matrices(stamps, np.stack([kf.t_wc for kf in kfs]))
-
-    def map_cloud(self, *, min_observations: int = 2) -> NDArray[np.float32]:
-        """Sparse map: (N, 3) float32 positions of points seen by enough keyframes."""
-        return self.map.point_cloud(min_observations=min_observations).astype(np.float32)
-
-    def dense_cloud(
-        self, voxel_size: float = 0.05
-    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
-        """Dense coloured cloud from the keyframes' depth, voxel-averaged.
-
-        Args:
-            voxel_size: voxel side in metres (one averaged point per occupied voxel).
-
-        Returns:
-            ``(points (N, 3) float32, rgb (N, 3) uint8)`` in the map frame.
-        """
-        return voxel_average(self.map.keyframes, voxel_size)
 
     def finish(self) -> None:
         """End of a run: the final global bundle adjustment if configured."""

@@ -1,0 +1,431 @@
+"""Where a :class:`~visnav.slam.node.SlamNode` runs its :class:`~visnav.slam.SlamSystem`.
+
+* :class:`InlineWorker`: in the caller's thread (each :meth:`~SlamWorker.submit` tracks
+  the frame before it returns);
+* :class:`ProcessWorker`: in a process of its own (``python -m visnav.slam.worker``), fed
+  through a socket pair, so that tracking and mapping use another core while the caller (the
+  simulator, the navigation) goes on. Results come back in submission order.
+
+Both give the same results for the same frames: the system sees the same inputs in
+the same order, and its random sources are seeded per frame. What differs is only
+*when* the caller has the result; :class:`~visnav.slam.node.SlamNode` makes that a
+fixed delay in stamp time (``result_latency``), so a run does not depend on the
+wall clock either (ORB-SLAM's tracking thread instead uses whatever the mapping thread
+has finished, which makes its runs differ from one another).
+
+A frame whose inputs are unusable does not stop the worker: its result carries the
+error text (:attr:`WorkerResult.error`), as the inline system would have raised it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav.slam.camera import CameraIntrinsics
+from visnav.slam.config import SlamConfig, TrackResult
+from visnav.slam.errors import SlamError
+from visnav.slam.system import SlamSystem
+from visnav.slam.trajectory import Trajectory
+from visnav.slam.vocabulary import Vocabulary
+
+__all__ = [
+    "WORKERS",
+    "InlineWorker",
+    "ProcessWorker",
+    "SlamStats",
+    "SlamWorker",
+    "SlamWorkerError",
+    "WorkerResult",
+    "make_worker",
+]
+
+FloatArray = NDArray[np.float64]
+
+WORKERS = ("inline", "process")
+"""The ``worker`` parameter's values."""
+
+_START_TIMEOUT_S = 120.0  # importing gtsam / OpenCV in a fresh process on a loaded machine
+
+
+class SlamWorkerError(SlamError, RuntimeError):
+    """The SLAM worker process failed or cannot be started."""
+
+
+@dataclass(frozen=True)
+class WorkerResult:
+    """One frame's outcome from a worker.
+
+    Attributes:
+        result: the system's result (None when the frame was refused).
+        error: why the frame was refused (a :class:`~visnav.slam.SlamInputError` text).
+        cpu_s: CPU time the worker spent on the frame (its thread's, s).
+        stats: the system's counters after the frame.
+    """
+
+    result: TrackResult | None
+    error: str = ""
+    cpu_s: float = 0.0
+    stats: SlamStats | None = None
+
+
+@dataclass(frozen=True)
+class SlamStats:
+    """Counters of a SLAM system (the car summary's ``slam`` key reads them)."""
+
+    frames: int = 0
+    lost: int = 0
+    relocalized: int = 0
+    reinitialized: int = 0
+    keyframes: int = 0
+    loops: int = 0
+    ba_runs: int = 0
+    ba_failures: int = 0
+    ba_last_error: str = ""
+    cpu_s: float = 0.0
+    stage_cpu_s: dict[str, float] = field(default_factory=dict)
+
+
+class _Core:
+    """The system and its bookkeeping, the same in both workers."""
+
+    def __init__(
+        self,
+        camera: CameraIntrinsics,
+        config: SlamConfig,
+        vocabulary_path: str,
+        initial_pose: FloatArray,
+    ) -> None:
+        vocab = Vocabulary.load(vocabulary_path) if vocabulary_path else None
+        self.system = SlamSystem(camera, config, vocabulary=vocab, initial_pose=initial_pose)
+        self.cpu_s = 0.0
+        self.stage_cpu: dict[str, float] = {}
+
+    def track(
+        self,
+        image: NDArray[Any],
+        depth: NDArray[Any] | None,
+        stamp_ns: int,
+        odom_pose: FloatArray | None,
+    ) -> WorkerResult:
+        t0 = time.thread_time()
+        try:
+            res = self.system.track(image, depth, stamp_ns, odom_pose=odom_pose)
+        except SlamError as exc:
+            cpu = time.thread_time() - t0
+            self.cpu_s += cpu
+            return WorkerResult(None, str(exc), cpu, self.stats())
+        cpu = time.thread_time() - t0
+        self.cpu_s += cpu
+        for k, v in res.cpu_timings.items():
+            self.stage_cpu[k] = self.stage_cpu.get(k, 0.0) + v
+        return WorkerResult(res, "", cpu, self.stats())
+
+    def stats(self) -> SlamStats:
+        s = self.system
+        return SlamStats(
+            frames=s.n_frames,
+            lost=s.n_lost,
+            relocalized=s.n_relocalized,
+            reinitialized=s.n_reinitialized,
+            keyframes=sum(1 for kf in s.map.keyframes if not kf.bad),
+            loops=len(s.loops),
+            ba_runs=s.ba_runs,
+            ba_failures=s.ba_failures,
+            ba_last_error=s.ba_last_error,
+            cpu_s=self.cpu_s,
+            stage_cpu_s=dict(self.stage_cpu),
+        )
+
+    def call(self, name: str, args: tuple[Any, ...]) -> Any:
+        if name == "trajectory":
+            return self.system.trajectory()
+        if name == "map_cloud":
+            return self.system.map_cloud()
+        if name == "dense_cloud":
+            return self.system.dense_cloud(*args)
+        if name == "stats":
+            return self.stats()
+        text = f"unknown SLAM worker call {name!r}"
+        raise SlamWorkerError(text)
+
+
+class SlamWorker:
+    """The interface of the workers: frames in, results out in order, queries.
+
+    Args:
+        camera: the camera intrinsics.
+        config: the system's configuration.
+        vocabulary_path: a saved vocabulary (``""``: trained from the first keyframes).
+        initial_pose: ``T_map_camera`` of the first frame.
+    """
+
+    def __init__(
+        self,
+        camera: CameraIntrinsics,
+        config: SlamConfig,
+        *,
+        vocabulary_path: str = "",
+        initial_pose: FloatArray | None = None,
+    ) -> None:
+        self.camera, self.config = camera, config
+        self.vocabulary_path = vocabulary_path
+        self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
+        self.in_flight = 0
+
+    def submit(
+        self,
+        image: NDArray[Any],
+        depth: NDArray[Any] | None,
+        stamp_ns: int,
+        odom_pose: FloatArray | None = None,
+    ) -> None:
+        """Queue one frame (the arguments of :meth:`SlamSystem.track`)."""
+        raise NotImplementedError
+
+    def next_result(self) -> WorkerResult:
+        """The result of the oldest frame not yet taken (waits for it)."""
+        raise NotImplementedError
+
+    def _call(self, name: str, *args: Any) -> Any:
+        raise NotImplementedError
+
+    def trajectory(self) -> Trajectory:
+        """Camera poses of all tracked frames in the map (after every queued frame)."""
+        out: Trajectory = self._call("trajectory")
+        return out
+
+    def map_cloud(self) -> NDArray[np.float32]:
+        """The sparse map (after every queued frame)."""
+        out: NDArray[np.float32] = self._call("map_cloud")
+        return out
+
+    def dense_cloud(self, voxel: float) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+        """The dense coloured cloud, ``voxel`` m (after every queued frame)."""
+        out: tuple[NDArray[np.float32], NDArray[np.uint8]] = self._call("dense_cloud", voxel)
+        return out
+
+    def stats(self) -> SlamStats:
+        """Counters (after every queued frame)."""
+        out: SlamStats = self._call("stats")
+        return out
+
+    def close(self) -> None:
+        """Stop the worker (idempotent)."""
+
+
+class InlineWorker(SlamWorker):
+    """Tracks each frame in the caller's thread when it is submitted."""
+
+    def __init__(
+        self,
+        camera: CameraIntrinsics,
+        config: SlamConfig,
+        *,
+        vocabulary_path: str = "",
+        initial_pose: FloatArray | None = None,
+    ) -> None:
+        super().__init__(camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose)
+        self.core = _Core(camera, config, vocabulary_path, self.initial_pose)
+        self._done: deque[WorkerResult] = deque()
+
+    @property
+    def system(self) -> SlamSystem:
+        """The system itself (only an inline worker has it in this process)."""
+        return self.core.system
+
+    def submit(
+        self,
+        image: NDArray[Any],
+        depth: NDArray[Any] | None,
+        stamp_ns: int,
+        odom_pose: FloatArray | None = None,
+    ) -> None:
+        """Track the frame now; its result waits for :meth:`next_result`."""
+        self._done.append(self.core.track(image, depth, stamp_ns, odom_pose))
+        self.in_flight += 1
+
+    def next_result(self) -> WorkerResult:
+        """The oldest result not yet taken.
+
+        Raises:
+            SlamWorkerError: no frame is waiting.
+        """
+        if not self._done:
+            text = "no SLAM frame in flight: submit one before asking for its result"
+            raise SlamWorkerError(text)
+        self.in_flight -= 1
+        return self._done.popleft()
+
+    def _call(self, name: str, *args: Any) -> Any:
+        return self.core.call(name, args)
+
+
+def _serve(conn: Connection) -> None:
+    """The worker process: build the system, then answer requests until told to stop."""
+    core: _Core | None = None
+    while True:
+        try:
+            msg: tuple[Any, ...] = conn.recv()
+        except (EOFError, OSError):  # the parent is gone
+            return
+        kind = msg[0]
+        try:
+            if kind == "init":
+                core = _Core(*msg[1:])
+                conn.send(("ok", None))
+            elif core is None:
+                conn.send(("error", f"{kind!r} before the system was built"))
+            elif kind == "track":
+                conn.send(("ok", core.track(*msg[1:])))
+            elif kind == "call":
+                conn.send(("ok", core.call(msg[1], msg[2])))
+            else:  # "close"
+                conn.send(("ok", None))
+                return
+        except Exception as exc:  # noqa: BLE001 - every failure goes back to the node
+            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+
+
+class ProcessWorker(SlamWorker):
+    """Tracks frames in a process of its own (see the module docstring).
+
+    Raises:
+        SlamWorkerError: the process cannot be started or dies.
+    """
+
+    def __init__(
+        self,
+        camera: CameraIntrinsics,
+        config: SlamConfig,
+        *,
+        vocabulary_path: str = "",
+        initial_pose: FloatArray | None = None,
+    ) -> None:
+        super().__init__(camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose)
+        # a fresh interpreter (never a fork of one holding MuJoCo / GL state), started by
+        # module name: multiprocessing's "spawn" would re-run the caller's __main__ script
+        parent, child = socket.socketpair()
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "visnav.slam.worker", str(child.fileno())],
+            pass_fds=(child.fileno(),),
+            stdin=subprocess.DEVNULL,
+        )
+        child.close()
+        self._conn = Connection(parent.detach())
+        self._closed = False
+        self._received: deque[WorkerResult] = deque()
+        self._conn.send(("init", camera, config, vocabulary_path, self.initial_pose))
+        self._answer("start", timeout_s=_START_TIMEOUT_S)
+
+    def _answer(self, what: str, *, timeout_s: float | None = None) -> Any:
+        if timeout_s is not None and not self._conn.poll(timeout_s):
+            self.close()
+            text = f"SLAM worker process did not answer {what} within {timeout_s:.0f} s"
+            raise SlamWorkerError(text)
+        try:
+            status, value = self._conn.recv()
+        except (EOFError, OSError) as exc:
+            code = self._proc.poll()
+            text = f"SLAM worker process ended (exit code {code}) during {what}: {exc!r}"
+            raise SlamWorkerError(text) from None
+        if status == "error":
+            text = f"SLAM worker process failed during {what}: {value}"
+            raise SlamWorkerError(text)
+        return value
+
+    def submit(
+        self,
+        image: NDArray[Any],
+        depth: NDArray[Any] | None,
+        stamp_ns: int,
+        odom_pose: FloatArray | None = None,
+    ) -> None:
+        """Send the frame to the process (returns at once)."""
+        self._conn.send(("track", image, depth, int(stamp_ns), odom_pose))
+        self.in_flight += 1
+
+    def next_result(self) -> WorkerResult:
+        """Wait for the oldest frame's result.
+
+        Raises:
+            SlamWorkerError: no frame in flight, or the process died.
+        """
+        if self.in_flight <= 0:
+            text = "no SLAM frame in flight: submit one before asking for its result"
+            raise SlamWorkerError(text)
+        self.in_flight -= 1
+        if self._received:
+            return self._received.popleft()
+        out: WorkerResult = self._answer("tracking")
+        return out
+
+    def _call(self, name: str, *args: Any) -> Any:
+        """A query, answered after every frame in flight (their results are kept)."""
+        while len(self._received) < self.in_flight:
+            self._received.append(self._answer("tracking"))
+        self._conn.send(("call", name, args))
+        return self._answer(name)
+
+    def close(self) -> None:
+        """Ask the process to stop; kill it if it does not within 5 s."""
+        if self._closed:
+            return
+        self._closed = True
+        with contextlib.suppress(OSError, ValueError):
+            self._conn.send(("close",))
+        try:
+            self._proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.wait(5.0)
+        self._conn.close()
+
+
+def make_worker(
+    kind: str,
+    camera: CameraIntrinsics,
+    config: SlamConfig,
+    *,
+    vocabulary_path: str = "",
+    initial_pose: FloatArray | None = None,
+) -> SlamWorker:
+    """A worker by its ``worker`` parameter value (``inline`` or ``process``).
+
+    Raises:
+        SlamWorkerError: an unknown kind.
+    """
+    if kind == "inline":
+        return InlineWorker(
+            camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose
+        )
+    if kind == "process":
+        return ProcessWorker(
+            camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose
+        )
+    text = f"worker {kind!r}: expected one of {', '.join(WORKERS)} (inline: in the node's thread)"
+    raise SlamWorkerError(text)
+
+
+def _main(argv: list[str]) -> int:
+    """``python -m visnav.slam.worker FD``: serve the connection on file descriptor FD."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    _serve(Connection(int(argv[1])))
+    return 0
+
+
+if __name__ == "__main__":  # run the imported module's copy: results pickle by its name
+    from visnav.slam import worker as _worker  # noqa: PLW0406 - see the comment above
+
+    sys.exit(_worker._main(sys.argv))

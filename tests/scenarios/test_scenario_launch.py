@@ -1,0 +1,154 @@
+"""The scenarios as launch files: what they start, and that a run is a launch.
+
+* the car and drone files load, with the arguments ``visnav run`` gives them;
+* ``visnav launch car ...`` gives the same run as ``visnav run car`` (same task summary);
+* moving a node to its own process is one added line (``process: own``): the observer then
+  scores the run from another process, over the graph.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from visnav.description.robots import resolve_robot
+from visnav.description.world import load_world
+from visnav.graph import Context
+from visnav.launch.loader import load_launch
+from visnav.scenarios.runner import SCENARIOS, launch_file, run_scenario
+
+RUN_KEYS = ("wall_duration_s", "real_time_factor", "bag", "topics", "sim_duration_s")
+"""Keys of the run, not the task: `visnav launch` has no bag, and its observer's sim time is
+the last /clock it received (one physics step before the end)."""
+
+
+def _nodes(name: str, **args: str) -> dict[str, object]:
+    return {n.name: n for n in load_launch(launch_file(name), args).nodes}
+
+
+def test_builtin_scenarios_are_launch_files_shipped_in_the_package() -> None:
+    for name in SCENARIOS:
+        path = launch_file(name)
+        assert path.is_file()
+        assert path.parent.name == "launch"
+        nodes = _nodes(name)
+        assert {"sim", "observer"} <= set(nodes)
+        sim = nodes["sim"]
+        assert sim.params["lockstep"] is True  # type: ignore[attr-defined]
+        assert sim.process == "shared"  # type: ignore[attr-defined]
+
+
+def test_car_file_matches_the_robot_and_the_world() -> None:
+    nodes = _nodes("car", seed="4", slam="false", ideal_sensors="false")
+    depth = [c for c in resolve_robot("car").gazebo.cameras if c.kind == "depth"]
+    scan = nodes["depthimage_to_laserscan"]
+    # the depth camera's near clip, not depthimage_to_laserscan's 0.45 m (seed 4 hit a wall)
+    assert scan.params["range_min"] == pytest.approx(depth[0].depth_range[0])  # type: ignore[attr-defined]
+    assert "slam" not in nodes
+    assert nodes["observer"].params["odometry_source"] == "encoder"  # type: ignore[attr-defined]
+    x, y, yaw = load_world("office", seed=4).metadata["spawn"]
+    tf = nodes["map_to_odom"].params  # type: ignore[attr-defined]
+    assert (tf["x"], tf["y"], tf["yaw"]) == pytest.approx((x, y, yaw))
+    assert (tf["frame_id"], tf["child_frame_id"]) == ("map", "odom")
+    ideal = _nodes("car", ideal_sensors="true")
+    tf = ideal["map_to_odom"].params  # type: ignore[attr-defined]
+    assert (tf["x"], tf["y"], tf["yaw"]) == (0.0, 0.0, 0.0)
+    assert ideal["observer"].params["odometry_source"] == "world"  # type: ignore[attr-defined]
+    assert "slam" in ideal
+    assert ideal["slam"].params["publish_tf"] is False  # type: ignore[attr-defined]
+    # the default: noisy sensors and SLAM in the loop, which publishes map -> odom itself
+    loop = _nodes("car")
+    assert "map_to_odom" not in loop
+    slam = loop["slam"].params  # type: ignore[attr-defined]
+    assert (slam["publish_tf"], slam["odom_frame"], slam["worker"]) == (True, "odom", "process")
+    assert (slam["initial_pose.x"], slam["initial_pose.y"]) == pytest.approx((x, y))
+    assert loop["observer"].params["localization_source"] == "slam"  # type: ignore[attr-defined]
+    bounds = load_world("office", seed=0).metadata["bounds"]
+    mapper = nodes["mapper"].params  # type: ignore[attr-defined]
+    assert mapper["origin_x"] == bounds[0] - 2.0
+    assert mapper["width"] == bounds[2] - bounds[0] + 4.0
+
+
+def test_visnav_launch_prints_the_car_scenario() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "visnav.cli.main", "launch", "--print", "car", "seed:=4"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    for name in ("/sim", "/move_base", "/car_goals", "/observer", "/slam"):
+        assert f"\n  {name}  [" in out.stdout
+
+
+def _task(summary: dict[str, object]) -> dict[str, object]:
+    return {k: v for k, v in summary.items() if k not in RUN_KEYS}
+
+
+@pytest.mark.slow
+@pytest.mark.ci
+@pytest.mark.timeout(600)
+def test_visnav_launch_gives_the_same_run_as_visnav_run(tmp_path: Path, domain: int) -> None:
+    args = ["seed:=4", "duration:=4.0", "slam:=false", f"out:={tmp_path / 'launched'}"]
+    env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
+    done = subprocess.run(
+        [sys.executable, "-m", "visnav.cli.main", "launch", "car", *args],
+        capture_output=True,
+        text=True,
+        timeout=500,
+        check=False,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    launched = json.loads((tmp_path / "launched" / "summary.json").read_text())
+    with Context(transport="local") as ctx:
+        ran = run_scenario(
+            "car",
+            seed=4,
+            duration_s=4.0,
+            slam=False,
+            out=tmp_path / "ran",
+            context=ctx,
+            progress=None,
+        )
+    assert launched["goals_total"] == 4
+    assert launched["odometry"]["distance_m"] > 0.1  # the car drove towards its first goal
+    assert launched["sim_duration_s"] == pytest.approx(ran["sim_duration_s"], abs=0.01)
+    assert _task(launched) == _task(ran)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_one_line_moves_the_observer_to_its_own_process(tmp_path: Path, domain: int) -> None:
+    text = launch_file("car").read_text()
+    anchor = "            exec: scenario_observer\n"
+    assert text.count(anchor) == 1
+    moved = tmp_path / "car_own_observer.launch.yaml"
+    moved.write_text(text.replace(anchor, anchor + "            process: own\n"))
+    assert len(moved.read_text().splitlines()) == len(text.splitlines()) + 1
+    nodes = {n.name: n for n in load_launch(moved, {}).nodes}
+    assert nodes["observer"].process == "own"
+    with Context(domain) as ctx:
+        summary = run_scenario(
+            str(moved),
+            seed=4,
+            duration_s=3.0,
+            slam=False,
+            ideal_sensors=True,
+            out=tmp_path / "r",
+            context=ctx,
+            progress=None,
+        )
+    # written by the observer in its own process, from what it received over the graph
+    assert summary["launch_file"] == str(moved)
+    assert summary["scenario"] == "car"
+    assert summary["goals_total"] == 4
+    assert summary["odometry"]["source"] == "world"
+    assert summary["odometry"]["distance_m"] > 0.05
+    assert summary["localization"]["samples"] >= 10
+    assert summary["collisions"] == 0
