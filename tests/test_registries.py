@@ -69,7 +69,8 @@ ADDED = {
         "set_initial_pose",
         "worker",
     },
-    "sim": {"contact_rate", "lockstep"},  # issue 17 item 3: bumper_states, lock-step launches
+    # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
+    "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},
 }
 """Parameters added after the snapshot: adding one to a built-in node is a line here."""
 

@@ -10,6 +10,7 @@ import logging
 import os
 import threading
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from visnav.bridge.bridge import BridgeOptions, Ros1Bridge
@@ -17,11 +18,12 @@ from visnav.bridge.master import Ros1Master
 from visnav.bridge.master_api import advertised_host, master_uri_from_env
 from visnav.bridge.ros1_node import Ros1Node
 from visnav.graph import Context, Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["DEFAULT_NODE_NAME", "Ros1BridgeNode", "open_ros1_node", "run_bridge"]
+__all__ = ["DEFAULT_NODE_NAME", "BridgeParams", "Ros1BridgeNode", "open_ros1_node", "run_bridge"]
 
 DEFAULT_NODE_NAME = "visnav_bridge"
 _log = logging.getLogger("visnav.bridge")
@@ -59,6 +61,22 @@ def open_ros1_node(
     return node
 
 
+@dataclass(frozen=True)
+class BridgeParams:
+    """The ``ros1_bridge`` node's parameters (read once at start).
+
+    ``topics`` and ``exclude`` default to ``[""]``, a typed placeholder for "none given".
+    """
+
+    topics: tuple[str, ...] = param(("",), description="shell-style topic patterns to bridge")
+    exclude: tuple[str, ...] = param(("",), description="shell-style topic patterns to leave out")
+    ros1_node_name: str = param(DEFAULT_NODE_NAME, description="the bridge's ROS 1 node name")
+    master_uri: str = param("", description="ROS 1 master ('': ROS_MASTER_URI)")
+    serve_master_port: int = param(
+        0, description="0: use a running master; a port: serve one on 127.0.0.1", range=(0, 65535)
+    )
+
+
 class Ros1BridgeNode(Node):
     """The ``ros1_bridge`` node: bridges this visnav graph with the ROS 1 graph.
 
@@ -77,11 +95,10 @@ class Ros1BridgeNode(Node):
 
     def __init__(self, name: str = "ros1_bridge", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
-        topics = self.declare_parameter("topics", [""]).value
-        exclude = self.declare_parameter("exclude", [""]).value
-        ros1_name = str(self.declare_parameter("ros1_node_name", DEFAULT_NODE_NAME).value)
-        master_uri = str(self.declare_parameter("master_uri", "").value)
-        port = int(self.declare_parameter("serve_master_port", 0).value)
+        params = declare_params(self, BridgeParams)
+        topics, exclude = params.topics, params.exclude
+        ros1_name, master_uri = params.ros1_node_name, params.master_uri
+        port = params.serve_master_port
         self.master: Ros1Master | None = None
         if port:
             self.master = Ros1Master(port)

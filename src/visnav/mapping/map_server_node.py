@@ -15,9 +15,11 @@ instead. A missing or invalid file is an error at start, naming the file and fie
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from visnav.graph.node import Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.costmap_ros import MAP_QOS
 from visnav.mapping.map_io import MapFileError, OccupancyMap, load_map
 from visnav.msgs.types import MapMetaData, OccupancyGrid
@@ -25,7 +27,16 @@ from visnav.msgs.types import MapMetaData, OccupancyGrid
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["MapServerNode"]
+__all__ = ["MapServerNode", "MapServerParams"]
+
+
+@dataclass(frozen=True)
+class MapServerParams:
+    """map_server's parameters (read once at start)."""
+
+    yaml_filename: str = param("", description="the map YAML to publish (required)")
+    frame_id: str = param("map", description="frame of the published map")
+    topic_name: str = param("map", description="topic of the map (map_metadata is fixed)")
 
 
 class MapServerNode(Node):
@@ -41,10 +52,8 @@ class MapServerNode(Node):
 
     def __init__(self, name: str = "map_server", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
-        d = self.declare_parameter
-        path = str(d("yaml_filename", "").value)
-        frame_id = str(d("frame_id", "map").value)
-        topic = str(d("topic_name", "map").value)
+        params = declare_params(self, MapServerParams)
+        path, frame_id, topic = params.yaml_filename, params.frame_id, params.topic_name
         if not path:
             msg = (
                 f"node {self.get_name()!r}: parameter yaml_filename is empty; expected the "

@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 
 from visnav.graph.node import Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import CameraInfo, Header
 from visnav.perception.camera_driver import (
@@ -57,7 +58,14 @@ from visnav.perception.image_transport import ImageTransportPublisher
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["CameraDriverNode", "CvCameraNode", "DriverSettings", "UsbCamNode"]
+__all__ = [
+    "CameraDriverNode",
+    "CvCameraNode",
+    "CvCameraParams",
+    "DriverSettings",
+    "UsbCamNode",
+    "UsbCamParams",
+]
 
 _QUEUE = 5
 
@@ -244,6 +252,35 @@ _USB_CONTROLS: dict[str, tuple[int, float]] = {
 }
 
 
+@dataclass(frozen=True)
+class UsbCamParams:
+    """usb_cam's parameters (its names and defaults; read once at start).
+
+    The V4L2 controls (``brightness`` ... ``focus``) are -1 for "leave the device's value".
+    """
+
+    video_device: str = param("/dev/video0", description="V4L2 device, video file or stream URL")
+    pixel_format: str = param("mjpeg", description="the device's pixel format")
+    io_method: str = param("mmap", description="V4L2 I/O method: mmap, read or userptr")
+    brightness: int = param(-1, description="V4L2 brightness (-1: leave)")
+    contrast: int = param(-1, description="V4L2 contrast (-1: leave)")
+    saturation: int = param(-1, description="V4L2 saturation (-1: leave)")
+    sharpness: int = param(-1, description="V4L2 sharpness (-1: leave)")
+    gain: int = param(-1, description="V4L2 gain (-1: leave)")
+    focus: int = param(-1, description="V4L2 focus (-1: leave)")
+    autofocus: bool = param(False, description="turn autofocus on")
+    autoexposure: bool = param(True, description="automatic exposure (false: use exposure)")
+    exposure: int = param(100, description="manual exposure when autoexposure is false")
+    auto_white_balance: bool = param(True, description="automatic white balance")
+    white_balance: int = param(4000, description="white balance (K) when auto is false")
+    image_width: int = param(640, description="image width (px)")
+    image_height: int = param(480, description="image height (px)")
+    framerate: int = param(30, description="frames per second")
+    camera_frame_id: str = param("head_camera", description="frame_id of the images")
+    camera_name: str = param("head_camera", description="camera name (calibration files)")
+    camera_info_url: str = param("", description="calibration file URL ('': none)")
+
+
 class UsbCamNode(CameraDriverNode):
     """usb_cam: a V4L2 camera (or a file / stream) with usb_cam's parameters.
 
@@ -262,10 +299,8 @@ class UsbCamNode(CameraDriverNode):
 
     def _settings(self) -> DriverSettings:
         fqn = self.get_fully_qualified_name()
-        p = self.declare_parameter
-        device = str(p("video_device", "/dev/video0").value)
-        pixel_format = str(p("pixel_format", "mjpeg").value)
-        io_method = str(p("io_method", "mmap").value)
+        prm = declare_params(self, UsbCamParams)
+        device, pixel_format, io_method = prm.video_device, prm.pixel_format, prm.io_method
         if pixel_format not in PIXEL_FORMATS:
             msg = (
                 f"node {fqn}: pixel_format {pixel_format!r} is unknown: expected one of "
@@ -277,35 +312,47 @@ class UsbCamNode(CameraDriverNode):
             raise CameraDriverError(msg)
         controls: dict[int, float] = {}
         for key, (prop, unset) in _USB_CONTROLS.items():
-            value = float(p(key, int(unset)).value)
+            value = float(getattr(prm, key))
             if value != unset:
                 controls[prop] = value
-        autofocus = bool(p("autofocus", value=False).value)
-        autoexposure = bool(p("autoexposure", value=True).value)
-        exposure = float(p("exposure", 100).value)
-        auto_wb = bool(p("auto_white_balance", value=True).value)
-        white_balance = float(p("white_balance", 4000).value)
-        if autofocus:
+        if prm.autofocus:
             controls[cv2.CAP_PROP_AUTOFOCUS] = 1.0
-        if not autoexposure:  # V4L2: 1 = manual, 3 = aperture priority (auto)
+        if not prm.autoexposure:  # V4L2: 1 = manual, 3 = aperture priority (auto)
             controls[cv2.CAP_PROP_AUTO_EXPOSURE] = 1.0
-            controls[cv2.CAP_PROP_EXPOSURE] = exposure
-        if not auto_wb:
+            controls[cv2.CAP_PROP_EXPOSURE] = float(prm.exposure)
+        if not prm.auto_white_balance:
             controls[cv2.CAP_PROP_AUTO_WB] = 0.0
-            controls[cv2.CAP_PROP_WB_TEMPERATURE] = white_balance
+            controls[cv2.CAP_PROP_WB_TEMPERATURE] = float(prm.white_balance)
         source = parse_source(device)
         return DriverSettings(
             source=source,
-            width=_size(int(p("image_width", 640).value), "image_width", fqn),
-            height=_size(int(p("image_height", 480).value), "image_height", fqn),
-            rate=_positive_rate(float(p("framerate", 30).value), "framerate", fqn),
+            width=_size(prm.image_width, "image_width", fqn),
+            height=_size(prm.image_height, "image_height", fqn),
+            rate=_positive_rate(float(prm.framerate), "framerate", fqn),
             pixel_format=pixel_format if source.is_device else None,
             encoding="mono8" if PIXEL_FORMATS[pixel_format] == "GREY" else "rgb8",
-            frame_id=str(p("camera_frame_id", "head_camera").value),
-            camera_name=str(p("camera_name", "head_camera").value),
-            camera_info_url=str(p("camera_info_url", "").value),
+            frame_id=prm.camera_frame_id,
+            camera_name=prm.camera_name,
+            camera_info_url=prm.camera_info_url,
             controls=controls,
         )
+
+
+@dataclass(frozen=True)
+class CvCameraParams:
+    """cv_camera's parameters (its names and defaults; read once at start)."""
+
+    device_id: int = param(0, description="OpenCV camera index (when no path or file)")
+    device_path: str = param("", description="device path, preferred to device_id")
+    file: str = param("", description="a video file or URL, preferred to the device")
+    capture_delay: float = param(0.0, description="s the capture precedes the stamp")
+    image_width: int = param(0, description="image width (px; 0: the source's)")
+    image_height: int = param(0, description="image height (px; 0: the source's)")
+    rate: float = param(30.0, description="frames per second")
+    frame_id: str = param("camera", description="frame_id of the images")
+    camera_name: str = param("camera", description="camera name (calibration files)")
+    camera_info_url: str = param("", description="calibration file URL ('': none)")
+    rescale_camera_info: bool = param(False, description="scale the calibration to the size")
 
 
 class CvCameraNode(CameraDriverNode):
@@ -325,27 +372,24 @@ class CvCameraNode(CameraDriverNode):
 
     def _settings(self) -> DriverSettings:
         fqn = self.get_fully_qualified_name()
-        p = self.declare_parameter
-        device_id = int(p("device_id", 0).value)
-        device_path = str(p("device_path", "").value)
-        file = str(p("file", "").value)
-        if file:
-            source = parse_source(file if "://" in file else f"file://{file}")
+        prm = declare_params(self, CvCameraParams)
+        if prm.file:
+            source = parse_source(prm.file if "://" in prm.file else f"file://{prm.file}")
         else:
-            source = parse_source(device_path or device_id)
-        delay = float(p("capture_delay", 0.0).value)
+            source = parse_source(prm.device_path or prm.device_id)
+        delay = prm.capture_delay
         if not np.isfinite(delay) or delay < 0:
             msg = f"node {fqn}: capture_delay is {delay!r}: expected seconds >= 0"
             raise CameraDriverError(msg)
         return DriverSettings(
             source=source,
-            width=_size(int(p("image_width", 0).value), "image_width", fqn),
-            height=_size(int(p("image_height", 0).value), "image_height", fqn),
-            rate=_positive_rate(float(p("rate", 30.0).value), "rate", fqn),
+            width=_size(prm.image_width, "image_width", fqn),
+            height=_size(prm.image_height, "image_height", fqn),
+            rate=_positive_rate(prm.rate, "rate", fqn),
             encoding="bgr8",
-            frame_id=str(p("frame_id", "camera").value),
-            camera_name=str(p("camera_name", "camera").value),
-            camera_info_url=str(p("camera_info_url", "").value),
-            rescale_camera_info=bool(p("rescale_camera_info", value=False).value),
+            frame_id=prm.frame_id,
+            camera_name=prm.camera_name,
+            camera_info_url=prm.camera_info_url,
+            rescale_camera_info=prm.rescale_camera_info,
             capture_delay_ns=round(delay * 1e9),
         )

@@ -41,14 +41,17 @@ created in the same context.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from visnav.description.world import load_world
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.node import Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.safe_yaml import load_yaml
 from visnav.sim.errors import SimulatorNodeError
 from visnav.sim.guards import SimulationUnstableError
@@ -57,7 +60,7 @@ from visnav.sim.simulator import RobotSpawn, SimStats, Simulator
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["SimulatorNode", "SimulatorNodeError", "check_wheel_odometry"]
+__all__ = ["SimParams", "SimulatorNode", "SimulatorNodeError", "check_wheel_odometry"]
 
 _LOG = logging.getLogger("visnav.sim")
 _BATCH_WALL_S = 0.01  # work per timer callback when not pacing to the wall clock
@@ -103,6 +106,29 @@ def check_wheel_odometry(sim: Simulator) -> None:
             "ideal_sensors:=false), or run with --ideal-sensors"
         )
         raise SimulatorNodeError(msg)
+
+
+@dataclass(frozen=True)
+class SimParams:
+    """The simulator node's parameters (the module docstring's table; read once at start).
+
+    The array defaults hold a typed placeholder (``[""]``, ``[0.0]``) that means "empty".
+    """
+
+    world: str = param("office", description="built-in world or a world file")
+    world_params: tuple[str, ...] = param(("",), description="name:=value parameters of the world")
+    robot: str = param("car", description="built-in robot or a URDF / Xacro file")
+    robot_args: tuple[str, ...] = param(("",), description="Xacro name:=value arguments")
+    spawn: tuple[float, ...] = param((0.0,), description="[x, y, z, yaw]; empty: the world's spawn")
+    robot_namespace: str = param("/", description="pushed onto every topic of the robot")
+    frame_prefix: str = param("", description="prepended to the robot's TF frames")
+    seed: int = param(-1, description="sensor noise and world seed; -1: the world's, noise 0")
+    realtime: bool = param(True, description="pace sim time to the wall clock")
+    real_time_factor: float = param(1.0, description="target sim / wall ratio when realtime")
+    duration: float = param(0.0, description="sim seconds to run; 0: until shutdown")
+    contact_rate: float = param(0.0, description="Hz of bumper_states contacts; 0: off")
+    lockstep: bool = param(False, description="a launch drives the shared process lock-step")
+    require_wheel_odometry: bool = param(False, description="refuse a robot without encoders")
 
 
 class SimulatorNode(Node):
@@ -175,26 +201,10 @@ class SimulatorNode(Node):
         return sim
 
     def _parameters(self) -> Mapping[str, Any]:
-        defaults: dict[str, Any] = {
-            "world": "office",
-            "world_params": [""],
-            "robot": "car",
-            "robot_args": [""],
-            "spawn": [0.0],
-            "robot_namespace": "/",
-            "frame_prefix": "",
-            "seed": -1,
-            "realtime": True,
-            "real_time_factor": 1.0,
-            "duration": 0.0,
-            "contact_rate": 0.0,
-            "lockstep": False,
-            "require_wheel_odometry": False,
-        }
-        values = {name: self.declare_parameter(name, d).value for name, d in defaults.items()}
+        values = dataclasses.asdict(declare_params(self, SimParams))
         # array defaults carry a typed placeholder; an untouched one means "empty"
         for name in ("world_params", "robot_args", "spawn"):
-            if list(values[name]) == defaults[name]:
+            if list(values[name]) == list(getattr(SimParams, name)):
                 values[name] = []
         return values
 

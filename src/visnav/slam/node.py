@@ -63,6 +63,7 @@ disagrees with wheel odometry by 5x or more is reported as a likely depth unit e
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -71,6 +72,7 @@ from numpy.typing import NDArray
 from visnav import message_filters
 from visnav.errors import VisnavError
 from visnav.graph.node import Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import xyz_to_cloud
 from visnav.msgs.serde import get_message_class
@@ -97,7 +99,7 @@ from visnav.tf.ros import TransformBroadcaster, TransformListener
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["SlamNode"]
+__all__ = ["InitialPoseParams", "SlamNode", "SlamParams"]
 
 FloatArray = NDArray[np.float64]
 
@@ -120,6 +122,49 @@ def _image_array(msg: Image) -> NDArray[Any]:
     raise SlamInputError(text)
 
 
+@dataclass(frozen=True)
+class SlamParams:
+    """The SLAM node's parameters (read once at start; see the module docstring)."""
+
+    map_frame: str = param("map", description="the map frame SLAM publishes")
+    odom_frame: str = param("odom", description="odometry frame ('': publish map -> base)")
+    base_frame: str = param("base_link", description="the robot's base frame")
+    publish_tf: bool = param(True, description="publish map -> odom on /tf")
+    transform_tolerance: float = param(0.1, description="s the map -> odom stamp is post-dated")
+    tf_publish_period: float = param(0.05, description="s between map -> odom publications")
+    queue_size: int = param(10, description="synchroniser queue size")
+    approx_sync: bool = param(True, description="ApproximateTime (false: exact stamps)")
+    depth_scale: float = param(1000.0, description="16UC1 depth units per metre")
+    map_cloud_period: float = param(1.0, description="s between slam/map_points clouds")
+    path_publish_period: float = param(1.0, description="s of stamps between paths (0: every)")
+    dense_cloud_period: float = param(0.0, description="s between dense clouds (0: on request)")
+    dense_voxel: float = param(0.05, description="dense cloud voxel size (m)")
+    vocabulary: str = param("", description="a saved vocabulary .npz ('': built online)")
+    worker: str = param("inline", description="where SLAM runs: inline or process")
+    result_latency: float = param(0.0, description="s of stamp time a result is applied after")
+    set_initial_pose: bool = param(False, description="start at initial_pose.x/y/yaw")
+    max_frame_rate: float = param(0.0, description="Hz of processed frames (0: every frame)")
+    odometry_prior: bool = param(True, description="odom -> base predicts the camera motion")
+    n_features: int = param(1000, description="ORB features per frame")
+    seed: int = param(0, description="random seed")
+    loop_closure: bool = param(True, description="detect and close loops")
+    local_ba: bool = param(True, description="local bundle adjustment")
+    icp_refinement: bool = param(True, description="dense ICP refinement of each pose")
+    depth_noise: float = param(SlamConfig.depth_noise, description="sigma_z / z^2 of the depth")
+    sensor: str = param("rgbd", description="rgbd or mono")
+    mono_scale: str = param("depth", description="what scales a mono map: depth or odometry")
+    diagnostic_period: float = param(1.0, description="s between /diagnostics (0: on changes)")
+
+
+@dataclass(frozen=True)
+class InitialPoseParams:
+    """``initial_pose.*`` (nav2 AMCL's names), declared only with ``set_initial_pose``."""
+
+    x: float = param(0.0, description="start x of base_frame in the map (m)")
+    y: float = param(0.0, description="start y of base_frame in the map (m)")
+    yaw: float = param(0.0, description="start yaw of base_frame in the map (rad)")
+
+
 class SlamNode(Node):
     """RGB-D SLAM on a camera stream (see the module docstring for topics and parameters).
 
@@ -130,55 +175,54 @@ class SlamNode(Node):
 
     def __init__(self, name: str = "slam", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
-        p = self.declare_parameter
-        self.map_frame = str(p("map_frame", "map").value)
-        self.odom_frame = str(p("odom_frame", "odom").value)
-        self.base_frame = str(p("base_frame", "base_link").value)
-        self.publish_tf = bool(p("publish_tf", value=True).value)
-        self.transform_tolerance = float(p("transform_tolerance", 0.1).value)
-        tf_period = float(p("tf_publish_period", 0.05).value)
-        queue = int(p("queue_size", 10).value)
-        approx = bool(p("approx_sync", value=True).value)
-        depth_scale = float(p("depth_scale", 1000.0).value)
-        map_period = float(p("map_cloud_period", 1.0).value)
-        self._path_period_ns = round(1e9 * max(0.0, float(p("path_publish_period", 1.0).value)))
+        prm = declare_params(self, SlamParams)
+        self.params = prm
+        self.map_frame = prm.map_frame
+        self.odom_frame = prm.odom_frame
+        self.base_frame = prm.base_frame
+        self.publish_tf = prm.publish_tf
+        self.transform_tolerance = prm.transform_tolerance
+        tf_period = prm.tf_publish_period
+        queue = prm.queue_size
+        approx = prm.approx_sync
+        depth_scale = prm.depth_scale
+        map_period = prm.map_cloud_period
+        self._path_period_ns = round(1e9 * max(0.0, prm.path_publish_period))
         self._path_sent_ns: int | None = None
-        dense_period = float(p("dense_cloud_period", 0.0).value)
-        self.dense_voxel = float(p("dense_voxel", 0.05).value)
-        self.vocabulary_path = str(p("vocabulary", "").value)
-        self.worker_kind = str(p("worker", "inline").value)
+        dense_period = prm.dense_cloud_period
+        self.dense_voxel = prm.dense_voxel
+        self.vocabulary_path = prm.vocabulary
+        self.worker_kind = prm.worker
         if self.worker_kind not in WORKERS:
             text = f"worker {self.worker_kind!r}: expected one of {', '.join(WORKERS)}"
             raise SlamInputError(text)
-        latency = float(p("result_latency", 0.0).value)
+        latency = prm.result_latency
         if not (latency >= 0.0 and np.isfinite(latency)):
             text = f"result_latency {latency}: expected seconds >= 0 (0: apply at once)"
             raise SlamInputError(text)
         self._latency_ns = round(latency * 1e9)
         self._initial_pose: FloatArray | None = None
-        if bool(p("set_initial_pose", value=False).value):
-            x = float(p("initial_pose.x", 0.0).value)
-            y = float(p("initial_pose.y", 0.0).value)
-            yaw = float(p("initial_pose.yaw", 0.0).value)
-            self._initial_pose = _planar_pose(x, y, yaw)
-        rate = float(p("max_frame_rate", 0.0).value)
+        if prm.set_initial_pose:  # initial_pose.* are declared only then (as before)
+            start = declare_params(self, InitialPoseParams, prefix="initial_pose.")
+            self._initial_pose = _planar_pose(start.x, start.y, start.yaw)
+        rate = prm.max_frame_rate
         if not (rate >= 0.0 and np.isfinite(rate)):
             text = f"max_frame_rate {rate}: expected a rate in Hz >= 0 (0 processes every frame)"
             raise SlamInputError(text)
         self._min_period_ns = round(1e9 / rate) if rate > 0 else 0
-        self.odometry_prior = bool(p("odometry_prior", value=True).value)
+        self.odometry_prior = prm.odometry_prior
         self._last_stamp: int | None = None
         self.skipped = 0
         self.config = SlamConfig(
-            n_features=int(p("n_features", 1000).value),
-            seed=int(p("seed", 0).value),
-            loop_closure=bool(p("loop_closure", value=True).value),
-            local_ba=bool(p("local_ba", value=True).value),
-            icp_refinement=bool(p("icp_refinement", value=True).value),
-            depth_noise=float(p("depth_noise", SlamConfig.depth_noise).value),
+            n_features=prm.n_features,
+            seed=prm.seed,
+            loop_closure=prm.loop_closure,
+            local_ba=prm.local_ba,
+            icp_refinement=prm.icp_refinement,
+            depth_noise=prm.depth_noise,
             depth_scale=depth_scale,
-            sensor=str(p("sensor", "rgbd").value),  # type: ignore[arg-type]
-            mono_scale=str(p("mono_scale", "depth").value),  # type: ignore[arg-type]
+            sensor=prm.sensor,  # type: ignore[arg-type]
+            mono_scale=prm.mono_scale,  # type: ignore[arg-type]
             final_global_ba=False,
         )
         self.worker: SlamWorker | None = None
@@ -187,7 +231,7 @@ class SlamNode(Node):
         self.cpu_s = 0.0  # the worker's CPU time on frames (its process or this thread)
         self._stats = SlamStats()
         self._diag = _SlamDiagnostics(self)
-        diag_period = float(p("diagnostic_period", 1.0).value)
+        diag_period = prm.diagnostic_period
         if diag_period > 0:  # 0: only on loss and recovery
             self.create_timer(diag_period, self._publish_diagnostics)
         self.camera: CameraIntrinsics | None = None

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from visnav.slam.features import DescArray, Frame, hamming_matrix
-from visnav.slam.geometry import inverse, transform
+from visnav.slam.geometry import inverse
 
 __all__ = [
     "Keyframe",
@@ -286,8 +286,3 @@ class SlamMap:
         keep = [p for p in ids.tolist() if len(self.observations[p]) >= min_observations]
         out: FloatArray = self.positions[np.asarray(keep, dtype=np.int64)].copy()
         return out
-
-    def transform_points_of(self, kf_id: int, points: IntArray, t_new_old: FloatArray) -> None:
-        """Move points by a world-frame correction ``T_new_old`` (after pose-graph optimisation)."""
-        del kf_id
-        self.positions[points] = transform(t_new_old, self.positions[points])

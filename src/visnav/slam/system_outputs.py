@@ -35,14 +35,6 @@ class SystemOutputs:
 
     map: SlamMap
     _records: list[FrameRecord]
-    _last_rec: FrameRecord | None
-
-    def current_pose(self) -> FloatArray | None:
-        """``T_map_camera`` of the last tracked frame, with corrections applied (None before)."""
-        if self._last_rec is None:
-            return None
-        rec = self._last_rec
-        return inverse(rec.t_c_ref @ self.map.keyframes[rec.ref_kf].t_cw)
 
     def trajectory(self) -> Trajectory:
         """Camera poses of all tracked frames in the map frame (loop corrections applied)."""

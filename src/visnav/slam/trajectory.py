@@ -148,12 +148,6 @@ class Trajectory:
         idx = np.asarray(indices, dtype=np.int64)
         return Trajectory(self.stamps[idx], self.positions[idx], self.quaternions[idx])
 
-    def path_length(self) -> float:
-        """Return the travelled distance in metres."""
-        if len(self) < 2:
-            return 0.0
-        return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum())
-
 
 def read_tum(path: str | Path) -> Trajectory:
     """Read a TUM trajectory file.

@@ -18,10 +18,12 @@ needed: only links and joints are read.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from visnav.description.urdf import parse_urdf
 from visnav.graph.node import Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.graph.qos import DurabilityPolicy, QoSProfile
 from visnav.msgs.types import JointState, String
 from visnav.tf.errors import TransformException
@@ -35,6 +37,7 @@ __all__ = [
     "RobotStatePublisher",
     "RobotStatePublisherNode",
     "RobotStatePublisherNodeError",
+    "RobotStatePublisherParams",
     "kinematics_only",
 ]
 
@@ -113,6 +116,14 @@ class RobotStatePublisher:
         self.node.destroy_node()
 
 
+@dataclass(frozen=True)
+class RobotStatePublisherParams:
+    """robot_state_publisher's parameters (read once at start)."""
+
+    robot_description: str = param("", description="the robot's URDF XML (required)")
+    frame_prefix: str = param("", description="prepended to every published frame id")
+
+
 class RobotStatePublisherNode(Node):
     """A robot_state_publisher node (see the module docstring).
 
@@ -130,8 +141,8 @@ class RobotStatePublisherNode(Node):
     ) -> None:
         super().__init__(name, **node_kwargs)
         try:
-            description = str(self.declare_parameter("robot_description", "").value)
-            prefix = str(self.declare_parameter("frame_prefix", "").value)
+            params = declare_params(self, RobotStatePublisherParams)
+            description, prefix = params.robot_description, params.frame_prefix
             if not description.strip():
                 msg = (
                     f"{self.get_fully_qualified_name()}: parameter robot_description is empty. "

@@ -16,11 +16,14 @@ those parameters, for launch files written for ROS:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from visnav.graph.node import Node, NodeOptions
+from visnav.graph.param_dataclass import declare_params, param
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Header, Quaternion, Transform, TransformStamped, Vector3
 from visnav.tf.errors import TransformException
@@ -32,6 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "StaticTransformError",
+    "StaticTransformParams",
     "StaticTransformPublisherNode",
     "static_transform_params_from_args",
     "static_transform_from_params",
@@ -167,6 +171,24 @@ def static_transform_from_params(params: dict[str, Any], *, stamp_ns: int = 0) -
     )
 
 
+@dataclass(frozen=True)
+class StaticTransformParams:
+    """static_transform_publisher's parameters (the ROS 2 tool's flags; read once at start)."""
+
+    x: float = param(0.0, description="translation x (m)")
+    y: float = param(0.0, description="translation y (m)")
+    z: float = param(0.0, description="translation z (m)")
+    yaw: float = param(0.0, description="rotation about z (rad); or give qx..qw")
+    pitch: float = param(0.0, description="rotation about y (rad); or give qx..qw")
+    roll: float = param(0.0, description="rotation about x (rad); or give qx..qw")
+    qx: float = param(0.0, description="rotation quaternion x; or give yaw/pitch/roll")
+    qy: float = param(0.0, description="rotation quaternion y")
+    qz: float = param(0.0, description="rotation quaternion z")
+    qw: float = param(1.0, description="rotation quaternion w")
+    frame_id: str = param("", description="the parent frame (required)")
+    child_frame_id: str = param("", description="the child frame (required)")
+
+
 class StaticTransformPublisherNode(Node):
     """Publish one static transform from parameters (see the module docstring).
 
@@ -182,12 +204,7 @@ class StaticTransformPublisherNode(Node):
         self, name: str = "static_transform_publisher", **node_kwargs: Unpack[NodeOptions]
     ) -> None:
         super().__init__(name, **node_kwargs)
-        params: dict[str, Any] = {}
-        for key in _FLAGS:
-            default = 1.0 if key == "qw" else 0.0
-            params[key] = float(self.declare_parameter(key, default).value)
-        for key in _FRAME_FLAGS.values():
-            params[key] = str(self.declare_parameter(key, "").value)
+        params = dataclasses.asdict(declare_params(self, StaticTransformParams))
         self.transform = static_transform_from_params(params, stamp_ns=self.get_clock().now_ns())
         self._broadcaster = StaticTransformBroadcaster(self)
         self._broadcaster.send_transform(self.transform)
