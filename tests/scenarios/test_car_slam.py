@@ -180,11 +180,15 @@ def test_task_without_frames_reports_zeros(ctx: Context) -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(2400)  # two runs of ~5 min alone on 2 cores
 def test_car_run_slam_acceptance(tmp_path: Path) -> None:
-    """Issue 9: the default car run (seed 0, a loop back past the start) meets the SLAM targets."""
+    """Issue 9: the ideal-sensor car run (seed 0, SLAM beside navigation) meets its targets."""
     runs = []
     for name in ("a", "b"):
         with Context(transport="local") as c:
-            runs.append(run_scenario("car", seed=0, out=tmp_path / name, context=c, progress=None))
+            runs.append(
+                run_scenario(
+                    "car", seed=0, out=tmp_path / name, ideal_sensors=True, context=c, progress=None
+                )
+            )
     first = runs[0]
     slam = first["slam"]
     assert first["sim_duration_s"] >= 60.0

@@ -127,14 +127,40 @@ def test_drone_flies_through_the_forest(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.timeout(900)
-@pytest.mark.parametrize("seed", [pytest.param(4, marks=pytest.mark.ci), 5])
+@pytest.mark.parametrize("seed", [4, 5])
 def test_car_reaches_its_goals_in_the_office(tmp_path: Path, seed: int) -> None:
+    # ground-truth odometry, no SLAM (--ideal-sensors --no-slam): the navigation chain alone.
     # seed 4 touched a wall when the scan dropped depth under 0.45 m; seed 5 spun at a goal
     # when every replan cleared DWA's xy latch
     with Context(transport="local") as ctx:
         summary = run_scenario(
-            "car", seed=seed, out=tmp_path / "c", slam=False, context=ctx, progress=None
+            "car",
+            seed=seed,
+            out=tmp_path / "c",
+            slam=False,
+            ideal_sensors=True,
+            context=ctx,
+            progress=None,
         )
     assert summary["goals_reached"] == summary["goals_total"] == 4
     assert summary["collisions"] == 0
     assert summary["path_ratio"] <= 1.3
+
+
+@pytest.mark.slow
+@pytest.mark.ci
+@pytest.mark.timeout(1200)
+def test_the_default_car_run_navigates_on_its_own_slam(tmp_path: Path) -> None:
+    """``visnav run car --seed 4`` as a user runs it: noisy sensors, drifting wheel odometry,
+    SLAM publishing ``map -> odom`` (issue 14). The bounds are today's figures with a margin,
+    not the issue's targets (RMSE 5 cm, max 15 cm), which are not met yet (BENCHMARKS.md)."""
+    with Context(transport="local") as ctx:
+        summary = run_scenario("car", seed=4, out=tmp_path / "c", context=ctx, progress=None)
+    assert summary["goals_reached"] == summary["goals_total"] == 4
+    assert summary["collisions"] == 0
+    assert summary["path_ratio"] <= 1.3
+    loc = summary["localization"]
+    assert loc["source"] == "slam"
+    assert summary["odometry_drift_m"] >= 0.3  # the loop, not the odometry, keeps it localised
+    assert loc["rmse_m"] <= 0.15
+    assert loc["max_m"] <= 0.40
