@@ -170,3 +170,26 @@ def test_bad_loop_parameters_are_refused(ctx: Context) -> None:
         SlamNode(context=ctx, parameter_overrides={"worker": "gpu"})
     with pytest.raises(SlamInputError, match=r"result_latency -1\.0"):
         SlamNode(context=ctx, parameter_overrides={"result_latency": -1.0})
+
+
+def test_a_worker_that_cannot_start_is_started_once_not_per_frame(
+    ctx: Context, short_sequence: Sequence, monkeypatch: pytest.MonkeyPatch, tmp_path: Any
+) -> None:
+    import visnav.slam.node as slam_node
+
+    starts: list[str] = []
+    real = slam_node.make_worker
+
+    def counting(*args: Any, **kwargs: Any) -> Any:
+        starts.append(args[0])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(slam_node, "make_worker", counting)
+    missing = str(tmp_path / "no_such_vocabulary.npz")
+    slam = _slam(ctx, result_latency=0.05, worker="process", vocabulary=missing)
+    rig = _Rig(ctx, short_sequence)
+    rig.run(list(range(4)))
+    assert starts == ["process"]  # one attempt (a fresh interpreter each), then refused
+    assert slam.dropped == 4
+    assert not rig.poses
+    slam.destroy_node()

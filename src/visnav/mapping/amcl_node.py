@@ -317,9 +317,8 @@ class AmclNode(Node):
             return
         st = f.status
         line = f"{st.state}: {st.text}"
-        if st.state == self._last_status.split(":", 1)[0] and st.state == "localized":
-            return
-        if line == self._last_status:
+        # once per change of state: the text (fit, pose) changes at every update
+        if st.state == self._last_status.split(":", 1)[0]:
             return
         self._last_status = line
         if st.state in ("not_converged", "lost"):

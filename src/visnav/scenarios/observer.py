@@ -343,7 +343,9 @@ class ObserverNode(Node):
             out = Path(self.params.output_dir)
             out.mkdir(parents=True, exist_ok=True)
             write_outputs(self, out)
-            (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+            tmp = out / "summary.json.tmp"  # whole or absent, even if this process is killed
+            tmp.write_text(json.dumps(summary, indent=2) + "\n")
+            tmp.replace(out / "summary.json")
         return summary
 
     def destroy_node(self) -> None:

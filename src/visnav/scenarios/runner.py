@@ -477,7 +477,11 @@ def _observer_summary(out_dir: Path, description: LaunchDescription) -> dict[str
             "`output_dir: $(arg out)` (or read its log for the error)"
         )
         raise ScenarioError(msg)
-    data = json.loads(path.read_text())
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        msg = f"{path}: the scenario_observer's summary does not read: {exc}; rerun the scenario"
+        raise ScenarioError(msg) from exc
     return dict(data) if isinstance(data, dict) else {}
 
 

@@ -92,7 +92,14 @@ from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
-from visnav.slam.worker import WORKERS, InlineWorker, SlamStats, SlamWorker, make_worker
+from visnav.slam.worker import (
+    WORKERS,
+    InlineWorker,
+    SlamStats,
+    SlamWorker,
+    SlamWorkerError,
+    make_worker,
+)
 from visnav.tf import Buffer, TransformException, matrix_to_pose, matrix_to_transform
 from visnav.tf.ros import TransformBroadcaster, TransformListener
 
@@ -226,6 +233,7 @@ class SlamNode(Node):
             final_global_ba=False,
         )
         self.worker: SlamWorker | None = None
+        self._worker_failure: str | None = None
         self._in_flight: deque[tuple[int, FloatArray]] = deque()  # stamp, T_odom_base
         self.tracking = False
         self.cpu_s = 0.0  # the worker's CPU time on frames (its process or this thread)
@@ -345,14 +353,20 @@ class SlamNode(Node):
                 return
             t_odom_base = found
         if self.worker is None:
+            if self._worker_failure is not None:
+                raise SlamWorkerError(self._worker_failure)  # not restarted on every frame
             start = self._initial_pose if self._initial_pose is not None else t_odom_base
-            self.worker = make_worker(
-                self.worker_kind,
-                cam,
-                self.config,
-                vocabulary_path=self.vocabulary_path,
-                initial_pose=start @ self._t_base_cam,
-            )
+            try:
+                self.worker = make_worker(
+                    self.worker_kind,
+                    cam,
+                    self.config,
+                    vocabulary_path=self.vocabulary_path,
+                    initial_pose=start @ self._t_base_cam,
+                )
+            except VisnavError as exc:
+                self._worker_failure = f"the SLAM worker could not start: {exc}; fix and restart"
+                raise SlamWorkerError(self._worker_failure) from exc
         depth_arr = None if depth is None else image_to_numpy(depth)
         if depth is not None and depth.encoding not in ("16UC1", "32FC1", "mono16"):
             text = f"depth encoding {depth.encoding!r}: expected 32FC1 (m) or 16UC1 (mm)"
@@ -416,7 +430,7 @@ class SlamNode(Node):
         pose = PoseStamped(header=header, pose=matrix_to_pose(t_map_base))
         self._pose_pub.publish(pose)
         if result.loop:
-            self._rebuild_path()
+            self._rebuild_path(upto_ns=stamp)
         else:
             self._path.append(pose)
         due = self._path_sent_ns is None or stamp - self._path_sent_ns >= self._path_period_ns
@@ -478,17 +492,23 @@ class SlamNode(Node):
                 "with depth_scale 1000, 32FC1 metres)"
             )
 
-    def _rebuild_path(self) -> None:
+    def _rebuild_path(self, *, upto_ns: int) -> None:
+        """The path from the corrected trajectory, up to the frame being applied.
+
+        The worker may already have tracked frames still in flight (``result_latency``):
+        those are appended when their own results are applied, not here.
+        """
         assert self.worker is not None
         traj = self.worker.trajectory()
         mats = traj.matrices()
         t_cb = inverse(self._t_base_cam) if self._t_base_cam is not None else np.eye(4)
         self._path = [
             PoseStamped(
-                header=Header(stamp=ns_to_time(round(t * 1e9)), frame_id=self.map_frame),
+                header=Header(stamp=ns_to_time(t_ns), frame_id=self.map_frame),
                 pose=matrix_to_pose(m @ t_cb),
             )
             for t, m in zip(traj.stamps, mats, strict=True)
+            if (t_ns := round(t * 1e9)) <= upto_ns
         ]
 
     def _publish_tf(self) -> None:
@@ -504,7 +524,8 @@ class SlamNode(Node):
         self._broadcaster.send_transform(msg)
 
     def _publish_map(self) -> None:
-        if self.worker is None:
+        # nobody listening: skip it, as the map fetch waits for every frame in flight
+        if self.worker is None or self._map_pub.get_subscription_count() == 0:
             return
         header = Header(stamp=ns_to_time(self.get_clock().now_ns()), frame_id=self.map_frame)
         self._map_pub.publish(xyz_to_cloud(self.worker.map_cloud(), header=header))

@@ -326,8 +326,12 @@ class ProcessWorker(SlamWorker):
         self._conn = Connection(parent.detach())
         self._closed = False
         self._received: deque[WorkerResult] = deque()
-        self._conn.send(("init", camera, config, vocabulary_path, self.initial_pose))
-        self._answer("start", timeout_s=_START_TIMEOUT_S)
+        try:
+            self._conn.send(("init", camera, config, vocabulary_path, self.initial_pose))
+            self._answer("start", timeout_s=_START_TIMEOUT_S)
+        except (SlamWorkerError, OSError):
+            self.close()  # a child that refused to start is not left running
+            raise
 
     def _answer(self, what: str, *, timeout_s: float | None = None) -> Any:
         if timeout_s is not None and not self._conn.poll(timeout_s):
