@@ -99,5 +99,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
+def _exit(code: int) -> None:
+    """Leave now that the nodes and the Context are closed.
+
+    A SIGTERM (the launcher died: ``PR_SET_PDEATHSIG``) that lands while the Context is
+    opening or closing can leave the Zenoh session open, and with it Zenoh's non-daemon
+    callback threads: the interpreter would then wait for them at exit and the child would
+    outlive its launcher. Everything a node writes is written by then, so exit at once.
+    """
+    logging.shutdown()
+    with contextlib.suppress(OSError, ValueError):
+        sys.stdout.flush()
+        sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    _exit(main())
