@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 import visnav.msgs
 from visnav.msgs import (
     Duration,
+    Header,
     Image,
     MessageError,
     Time,
@@ -31,6 +32,7 @@ from visnav.msgs import (
     time_to_ns,
     typestore,
 )
+from visnav.msgs.serde import CdrSerializer
 
 MESSAGE_CLASSES = sorted(
     (
@@ -222,3 +224,43 @@ def test_seconds_helpers() -> None:
     assert sec_to_ns(1e-9) == 1
     assert ns_to_sec(2_500_000_000) == 2.5
     assert isinstance(sec_to_ns(0.1), int)
+
+
+def _diagnostics(values: list[str]) -> Any:
+    array = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
+    status = get_message_class("diagnostic_msgs/msg/DiagnosticStatus")
+    key_value = get_message_class("diagnostic_msgs/msg/KeyValue")
+    statuses = [
+        status(
+            level=0,
+            name="car/left_wheel",
+            message="plane",
+            hardware_id="world/ground",
+            values=[key_value(key="x", value=v)],
+        )
+        for v in values
+    ]
+    return array(header=Header(stamp=ns_to_time(0), frame_id="world"), status=statuses)
+
+
+def test_reused_serializer_buffer_carries_no_stale_bytes() -> None:
+    # the same size, the first string one byte shorter: the first message's bytes used to
+    # stay where the second expects a terminator ("Missing string terminator")
+    cdr = CdrSerializer("diagnostic_msgs/msg/DiagnosticArray")
+    first = _diagnostics(["-6.16", "-6.2", "0"])
+    second = _diagnostics(["-6.2", "-6.16", "0"])
+    assert bytes(cdr.serialize(first)) == serialize(first)
+    assert len(serialize(first)) == len(serialize(second))  # the buffer is reused
+    data = bytes(cdr.serialize(second))
+    assert data == serialize(second)
+    assert (
+        deserialize(data, "diagnostic_msgs/msg/DiagnosticArray").status[0].values[0].value == "-6.2"
+    )
+
+
+@given(st.lists(st.lists(st.text(max_size=6), min_size=1, max_size=3), min_size=2, max_size=6))
+def test_reused_serializer_equals_fresh_serialization(batches: list[list[str]]) -> None:
+    cdr = CdrSerializer("diagnostic_msgs/msg/DiagnosticArray")
+    for values in batches:
+        msg = _diagnostics(values)
+        assert bytes(cdr.serialize(msg)) == serialize(msg)

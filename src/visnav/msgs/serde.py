@@ -10,6 +10,7 @@ import difflib
 import functools
 from typing import Any
 
+import numpy as np
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
@@ -120,7 +121,10 @@ class CdrSerializer:
     than the transport. This writes with the same generated ``rosbags`` functions
     into a buffer kept between calls while the size stays the same.
 
-    The returned buffer is valid until the next :meth:`serialize` call.
+    The returned buffer is valid until the next :meth:`serialize` call. It is zeroed
+    before each reuse: the generated functions skip string terminators and alignment
+    padding (they expect fresh zeros), so stale bytes of the previous message would
+    otherwise remain there.
     """
 
     def __init__(self, type_name: str) -> None:
@@ -144,6 +148,10 @@ class CdrSerializer:
                 self._buf = bytearray(size)
                 self._view = memoryview(self._buf)
                 self._buf[1] = 1  # CDR_LE encapsulation: 00 01 00 00
+            else:
+                # rosbags writes neither string terminators nor alignment padding: it relies
+                # on a zero-filled buffer, so a reused one must be zeroed again
+                np.frombuffer(self._buf, np.uint8, offset=4)[:] = 0
             end = self._msgdef.serialize_cdr_le(self._view[4:], 0, msg, self._store)
         except (SerdeError, TypeError, ValueError, AttributeError, KeyError, OverflowError) as exc:
             text = f"cannot serialize {self.type_name}: {exc}; check the field types"
