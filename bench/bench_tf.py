@@ -43,7 +43,7 @@ from visnav.tf import Buffer, quaternion_from_euler, translation_quaternion_to_m
 S = 1_000_000_000
 BATCH = 50
 BATCHES = 400
-ROUNDS = 5  # each row: visnav then tf2, ROUNDS times; medians reported
+ROUNDS = 7  # each row: visnav then tf2, ROUNDS times; medians reported
 T_FIXED = 5_555_000_000  # between samples of both dynamic links
 # 1,000 distinct times in [1 s, 9 s), none on a sample stamp.
 TIMES = [1_000_000_000 + 7_999_993 * k + 1_234_567 for k in range(1000)]

@@ -23,6 +23,8 @@ __all__ = [
 
 BUILTIN_NODES: Mapping[str, str] = {
     "image_proc": "visnav.perception.nodes:ImageProcNode",
+    "usb_cam": "visnav.perception.camera_driver_node:UsbCamNode",
+    "cv_camera": "visnav.perception.camera_driver_node:CvCameraNode",
     "point_cloud_xyz": "visnav.perception.nodes:PointCloudXyzNode",
     "point_cloud_xyzrgb": "visnav.perception.nodes:PointCloudXyzrgbNode",
     "convert_metric": "visnav.perception.nodes:ConvertMetricNode",

@@ -320,6 +320,22 @@ def test_cli_missing_device_is_one_line(capsys: pytest.CaptureFixture[str]) -> N
     assert "--pixel-format is a usb_cam parameter" in capsys.readouterr().err
 
 
+def test_cli_fps_is_whole_for_usb_cam(
+    video: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`visnav camera FILE --fps 5` (default driver usb_cam: integer framerate) runs."""
+    from visnav.cli.main import main
+
+    monkeypatch.setenv("VISNAV_TRANSPORT", "local")
+    assert main(["camera", str(video), "--fps", "200"]) == 0
+    assert f"usb_cam: published {FRAMES} frames" in capsys.readouterr().out
+    assert main(["camera", str(video), "--fps", "2.5"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: --fps 2.5: usb_cam's framerate is whole frames per second")
+    assert "--driver cv_camera" in err
+    assert "\n" not in err
+
+
 def test_roslaunch_usb_cam_node_maps_to_the_driver(tmp_path: Path, video: Path) -> None:
     from visnav.launch import load_launch
 
@@ -390,8 +406,11 @@ def test_cli_publishes_a_video_file_to_another_process(domain: int, video: Path)
     st.lists(st.text(max_size=20), max_size=4),
     st.sampled_from(["usb_cam", "cv_camera"]),
     st.one_of(st.none(), st.text(max_size=12)),
+    st.one_of(st.none(), st.floats()),
 )
-def test_cli_parameters_fuzz(items: list[str], driver: str, source: str | None) -> None:
+def test_cli_parameters_fuzz(
+    items: list[str], driver: str, source: str | None, fps: float | None
+) -> None:
     from visnav.cli.camera import add_arguments, driver_parameters
 
     parser = argparse.ArgumentParser()
@@ -399,6 +418,67 @@ def test_cli_parameters_fuzz(items: list[str], driver: str, source: str | None) 
     args = parser.parse_args(["--driver", driver])
     args.param = items
     args.source = source
+    args.fps = fps
     with contextlib.suppress(PerceptionError):
         params = driver_parameters(args)
         assert all(isinstance(k, str) for k in params)
+        if fps is not None and driver == "usb_cam":
+            assert type(params["framerate"]) is int
+
+
+def _launch_text(form: str, video: Path, calibration: Path) -> str:
+    if form == "yaml":
+        return f"""launch:
+  - node:
+      exec: usb_cam
+      name: usb_cam
+      params:
+        video_device: {video}
+        framerate: 200
+        io_method: read
+        camera_frame_id: front_optical
+        camera_info_url: file://{calibration}
+  - node: {{exec: image_proc, name: rectify, namespace: /usb_cam}}
+"""
+    return f"""<launch>
+  <node name="usb_cam" pkg="usb_cam" type="usb_cam_node">
+    <param name="video_device" value="{video}"/>
+    <param name="framerate" value="200"/>
+    <param name="io_method" value="mmap"/>
+    <param name="camera_frame_id" value="front_optical"/>
+    <param name="camera_info_url" value="file://{calibration}"/>
+  </node>
+  <node name="rectify" pkg="image_proc" type="image_proc" ns="usb_cam"/>
+</launch>"""
+
+
+@pytest.mark.parametrize("form", ["yaml", "xml"])
+@pytest.mark.timeout(60)
+def test_launch_file_starts_the_driver_and_a_rectifier_by_name(
+    form: str, tmp_path: Path, video: Path, calibration: Path
+) -> None:
+    """`exec: usb_cam` (YAML) and `pkg="usb_cam" type="usb_cam_node"` (roslaunch) both run."""
+    import threading
+
+    from visnav.launch import Launcher, load_launch
+
+    path = tmp_path / ("cam.launch.yaml" if form == "yaml" else "cam.launch")
+    path.write_text(_launch_text(form, video, calibration))
+    with Context(transport="local") as ctx:
+        got = _collect(ctx, "/usb_cam", {"image_rect": Image, "camera_info": CameraInfo})
+        launcher = Launcher(load_launch(path), context=ctx)
+        stop = threading.Event()
+        thread = threading.Thread(target=launcher.run, args=(stop,), daemon=True)
+        thread.start()
+        try:
+            deadline = time.monotonic() + 30
+            while len(got["image_rect"]) < FRAMES and time.monotonic() < deadline:
+                time.sleep(0.05)
+        finally:
+            stop.set()
+            thread.join(timeout=20)
+    (cam,) = [n for n in launcher.shared_nodes if isinstance(n, UsbCamNode)]
+    assert cam.frames == FRAMES
+    assert len(got["image_rect"]) == FRAMES
+    assert got["image_rect"][0].header.frame_id == "front_optical"
+    assert list(got["camera_info"][0].d) == D

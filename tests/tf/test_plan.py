@@ -162,3 +162,65 @@ def test_compiled_kernels_equal_the_python_ones(kernels: tuple[Any, Any, Any]) -
             (compose(a, b), _scalar.compose_py(a, b)),
         ):
             assert all(abs(x - y) < 1e-13 for x, y in zip(got, want, strict=True))
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    stamps=st.lists(st.integers(1, 40), min_size=1, max_size=40),
+    parents=st.lists(st.sampled_from(["odom", "map"]), min_size=40, max_size=40),
+)
+def test_interval_spans_follow_every_insertion(stamps: list[int], parents: list[str]) -> None:
+    """Out-of-order, replacing and window-dropping inserts keep each span its interval's."""
+    from visnav.tf._cache import FrameCache, span
+
+    rng = random.Random(len(stamps))
+    cache = FrameCache(is_static=False, cache_time_ns=10 * S // 4)
+    for k, stamp in enumerate(stamps):
+        m = tf(parents[k], "base", 0, rng).transform
+        t, q = m.translation, m.rotation
+        cache.insert(stamp * S // 4, parents[k], (t.x, t.y, t.z, q.x, q.y, q.z, q.w))
+        assert len(cache.spans) == len(cache.stamps) == len(cache.samples)
+        assert cache.spans[0] is None
+        for i in range(1, len(cache.stamps)):
+            stamps, samples = cache.stamps, cache.samples
+            want = span(stamps[i - 1], samples[i - 1], stamps[i], samples[i])
+            assert cache.spans[i] == want
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 3e-8, 1e-5, 0.2, 3.0, math.pi])
+def test_fused_chain_equals_the_scalar_functions(angle: float) -> None:
+    """The default (fused) chain loop against the ``_scalar`` functions, tiny arcs included."""
+    from visnav.tf._plan import reference_side, side
+
+    buf = Buffer()
+    for k in range(4):
+        a = 0.37 * k + angle * (k % 2)  # alternate: the arc between samples is ``angle``
+        quat = Quaternion(0.0, math.sin(a / 2), 0.0, math.cos(a / 2))
+        buf.set_transform(
+            TransformStamped(
+                Header(Time(k, 0), "odom"), "base", Transform(Vector3(k, 0.5 * k, 0.0), quat)
+            ),
+            "t",
+        )
+        buf.set_transform(
+            TransformStamped(
+                Header(Time(k, 0), "map"), "odom", Transform(Vector3(0.1 * k, 0.0, 1.0), quat)
+            ),
+            "t",
+        )
+    buf.set_transform_static(
+        TransformStamped(
+            Header(Time(0, 0), "base"),
+            "cam",
+            Transform(Vector3(0.1, 0.0, 0.5), Quaternion(-0.5, 0.5, -0.5, 0.5)),
+        ),
+        "t",
+    )
+    buf.lookup_transform("map", "cam", S // 2)  # builds the chain
+    plan = buf._plans["map", "cam"]
+    for t in (S // 3, S, 3 * S // 2, 2 * S + 1, 3 * S - 1, 3 * S):
+        got = side(plan.source_steps, t)
+        want = reference_side(plan.source_steps, t)
+        assert got is not None
+        assert want is not None
+        assert all(abs(x - y) < 1e-13 for x, y in zip(got, want, strict=True)), t

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
@@ -132,6 +133,32 @@ def test_view_bag_saves_an_rrd(tmp_path: Path, vz: Any, capsys: Any) -> None:
     assert len(rows) == 5
     assert np.allclose(rows[0], [[1.0, 1.0, 3.0]] * 3)
     assert rrd.times("world/points", "Points3D:positions")[0] == 1_000_000_000
+
+
+def test_view_bag_skips_a_message_that_does_not_decode(
+    tmp_path: Path, vz: Any, capsys: Any, caplog: Any
+) -> None:
+    """One corrupt message (as a damaged recording has) is counted; the rest is shown."""
+    pytest.importorskip("rerun")
+    from visnav.bag import BagWriter
+    from visnav.msgs import serialize
+
+    bag = tmp_path / "bag"
+    with BagWriter(bag) as w:
+        points = w.add_topic("/points", "sensor_msgs/msg/PointCloud2")
+        for i in range(4):
+            t = 1_000_000_000 + i * 100_000_000
+            data = serialize(xyz_to_cloud(np.ones((3, 3), np.float32), header=vz.header("b", t)))
+            w.write(points, t, data[:30] if i == 2 else data)  # the third one cut short
+    out = tmp_path / "bag.rrd"
+    with caplog.at_level(logging.WARNING, logger="visnav.viz"):
+        assert main(["view", str(bag), "--save", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "logged 3 messages" in err
+    (row,) = [line.split() for line in err.splitlines() if line.startswith("/points")]
+    assert row[-3:] == ["3", "0", "1"]  # logged, dropped, errors
+    assert "/points (sensor_msgs/msg/PointCloud2) skipped: bag" in caplog.text
+    assert len(vz.Rrd(out).rows("world/points", "Points3D:positions")) == 3
 
 
 def test_view_bad_arguments(tmp_path: Path, capsys: Any) -> None:

@@ -88,10 +88,19 @@ def driver_parameters(args: argparse.Namespace) -> dict[str, Any]:
             params["device_path"] = args.source
         else:
             params["file"] = args.source
+    fps = args.fps
+    if usb and fps is not None:
+        if not float(fps).is_integer():  # also nan and inf
+            msg = (
+                f"--fps {fps:g}: usb_cam's framerate is whole frames per second (e.g. --fps 30); "
+                "for a fractional rate use --driver cv_camera (its rate is a float)"
+            )
+            raise CameraDriverError(msg)
+        fps = int(fps)
     named = {
         "image_width": args.width,
         "image_height": args.height,
-        "framerate" if usb else "rate": args.fps,
+        "framerate" if usb else "rate": fps,
         "camera_frame_id" if usb else "frame_id": args.frame_id,
         "camera_info_url": args.camera_info_url,
     }

@@ -54,10 +54,11 @@ def format_stats(stats: dict[str, dict[str, Any]]) -> str:
     if not stats:
         return "no messages"
     width = max(len(t) for t in stats)
-    lines = [f"{'topic':<{width}}  {'type':<36} {'logged':>7} {'dropped':>7}"]
+    lines = [f"{'topic':<{width}}  {'type':<36} {'logged':>7} {'dropped':>7} {'errors':>7}"]
     for topic, row in sorted(stats.items()):
         type_name = row["type"] if row["supported"] else f"{row['type']} (not shown)"
-        lines.append(f"{topic:<{width}}  {type_name:<36} {row['logged']:>7} {row['dropped']:>7}")
+        counts = f"{row['logged']:>7} {row['dropped']:>7} {row['errors']:>7}"
+        lines.append(f"{topic:<{width}}  {type_name:<36} {counts}")
         if row["dropped"] and row["reason"]:
             lines.append(f"{'':<{width}}    last drop: {row['reason'][:160]}")
     return "\n".join(lines)

@@ -20,20 +20,41 @@ from __future__ import annotations
 
 from bisect import bisect_left
 from collections.abc import Callable
+from math import sin
 
 from visnav.tf import _scalar
-from visnav.tf._cache import FrameCache, Sample
+from visnav.tf._cache import FrameCache, Sample, Span
 from visnav.tf._scalar import Pose7, compose
 from visnav.tf._tree import MAX_GRAPH_DEPTH
 
-__all__ = ["Plan", "SideFn", "Step", "build_plan", "latest_time", "make_side", "run_plan", "side"]
+__all__ = [
+    "DOWNWARD",
+    "GENERAL",
+    "UPWARD",
+    "Plan",
+    "SideFn",
+    "Step",
+    "build_plan",
+    "latest_time",
+    "make_side",
+    "reference_side",
+    "run_plan",
+    "side",
+]
 
-Step = tuple[list[int] | None, list[Sample] | None, str, Pose7]
-"""``(stamps, samples, expected parent, pose)``: a dynamic link's cache lists (the
-FrameCache mutates them in place, so they stay current) and ``IDENTITY``; or
-``None, None`` and the composed pose of a run of static links."""
+Step = tuple[list[int], list[Sample], list[Span | None], str, Pose7]
+"""``(stamps, samples, spans, expected parent, pose)``: a dynamic link's cache lists
+(the FrameCache mutates them in place, so they stay current; never empty) and
+``IDENTITY``; or three empty lists and the composed pose of a run of static links."""
 
 Caches = dict[str, FrameCache]
+
+UPWARD = 0
+"""Plan kind: the target is an ancestor of the source (only ``source_steps``)."""
+DOWNWARD = 1
+"""Plan kind: the source is the root above the target (the inverse of ``target_steps``)."""
+GENERAL = 2
+"""Plan kind: both sides up to a common ancestor (:func:`run_plan`)."""
 
 
 class Plan:
@@ -50,9 +71,11 @@ class Plan:
             loop at the lookup time; :func:`run_plan` checks that it has none.
         guard: the frames of both paths (a walk above the ancestor reaching one of
             them means a loop).
+        kind: :data:`UPWARD`, :data:`DOWNWARD` or :data:`GENERAL` (which of the above
+            the lookup needs).
     """
 
-    __slots__ = ("ancestor_cache", "dynamic", "guard", "source_steps", "target_steps")
+    __slots__ = ("ancestor_cache", "dynamic", "guard", "kind", "source_steps", "target_steps")
 
     def __init__(
         self,
@@ -65,10 +88,16 @@ class Plan:
         self.source_steps = tuple(step for _, step in source_steps)
         self.target_steps = tuple(step for _, step in target_steps)
         self.dynamic = tuple(
-            (cache, step[2]) for cache, step in (*source_steps, *target_steps) if cache is not None
+            (cache, step[3]) for cache, step in (*source_steps, *target_steps) if cache is not None
         )
         self.ancestor_cache = ancestor_cache if target_steps else None
         self.guard = guard
+        if not target_steps:
+            self.kind = UPWARD
+        elif not source_steps and self.ancestor_cache is None:
+            self.kind = DOWNWARD
+        else:
+            self.kind = GENERAL
 
 
 def _path(caches: Caches, frame: str, stop: str | None) -> list[tuple[str, FrameCache]] | None:
@@ -98,11 +127,13 @@ def _steps(links: list[tuple[str, FrameCache]]) -> list[tuple[FrameCache | None,
             run_parent = parent
             continue
         if run is not None:
-            steps.append((None, (None, None, run_parent, run)))
+            steps.append((None, ([], [], [], run_parent, run)))
             run = None
-        steps.append((cache, (cache.stamps, cache.samples, cache.parent, _scalar.IDENTITY)))
+        steps.append(
+            (cache, (cache.stamps, cache.samples, cache.spans, cache.parent, _scalar.IDENTITY))
+        )
     if run is not None:
-        steps.append((None, (None, None, run_parent, run)))
+        steps.append((None, ([], [], [], run_parent, run)))
     return steps
 
 
@@ -195,8 +226,8 @@ def make_side(
         same call); between samples of different parents the older one is used (tf2).
         """
         acc: Pose7 | None = None
-        for stamps, samples, parent, pose in steps:
-            if stamps is not None and samples is not None:
+        for stamps, samples, _, parent, pose in steps:
+            if stamps:
                 i = bisect_left(stamps, t)
                 if 0 < i < len(stamps) and stamps[i] != t:
                     older = samples[i - 1]
@@ -225,7 +256,95 @@ def make_side(
     return side
 
 
-side: SideFn = make_side(_scalar.interpolate, _scalar.interpolate_compose, _scalar.compose)
+def side(steps: tuple[Step, ...], t: int) -> Pose7 | None:
+    """Compose one side's links at ``t``: the interpreted default of :func:`make_side`'s.
+
+    The same answer (to rounding) with all the arithmetic written out here: the
+    accumulated pose lives in seven locals (no tuple per link, no calls), and each
+    interval's slerp constants come from the cache's :data:`~visnav.tf._cache.Span`
+    (computed on insertion), which leaves two ``sin`` calls per interpolated link.
+    None when a link has no sample at ``t`` or its parent there is not the expected one.
+    """
+    have = False
+    tx = ty = tz = bx = by = bz = 0.0
+    bw = 1.0
+    for stamps, samples, spans, parent, pose in steps:
+        if stamps:  # a dynamic link (a static run has no stamps)
+            i = bisect_left(stamps, t)
+            if 0 < i < len(stamps) and stamps[i] != t:
+                span = spans[i]
+                if span is not None:  # both samples have one parent: interpolate
+                    (p, t0, inv_dt, atx, aty, atz, x0, y0, z0, w0,
+                     btx, bty, btz, x1, y1, z1, w1, theta, inv_sin) = span  # fmt: skip
+                    if p != parent:
+                        return None
+                    ratio = (t - t0) * inv_dt
+                    r0 = 1.0 - ratio
+                    if theta:
+                        s0 = sin(r0 * theta) * inv_sin
+                        s1 = sin(ratio * theta) * inv_sin
+                    else:
+                        s0 = r0
+                        s1 = ratio
+                    ax = s0 * x0 + s1 * x1
+                    ay = s0 * y0 + s1 * y1
+                    az = s0 * z0 + s1 * z1
+                    aw = s0 * w0 + s1 * w1
+                    if have:
+                        cx = 2.0 * (ay * tz - az * ty)
+                        cy = 2.0 * (az * tx - ax * tz)
+                        cz = 2.0 * (ax * ty - ay * tx)
+                        tx, ty, tz, bx, by, bz, bw = (
+                            tx + aw * cx + ay * cz - az * cy + r0 * atx + ratio * btx,
+                            ty + aw * cy + az * cx - ax * cz + r0 * aty + ratio * bty,
+                            tz + aw * cz + ax * cy - ay * cx + r0 * atz + ratio * btz,
+                            aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx,
+                            aw * bz + ax * by - ay * bx + az * bw,
+                            aw * bw - ax * bx - ay * by - az * bz,
+                        )
+                    else:
+                        tx = r0 * atx + ratio * btx
+                        ty = r0 * aty + ratio * bty
+                        tz = r0 * atz + ratio * btz
+                        bx, by, bz, bw = ax, ay, az, aw
+                        have = True
+                    continue
+                older = samples[i - 1]  # parents differ: the older sample, unchanged (tf2)
+                if older[0] != parent:
+                    return None
+                pose = older[1]  # noqa: PLW2901
+            else:
+                if i == len(stamps) or stamps[i] != t:
+                    return None
+                sample = samples[i]
+                if sample[0] != parent:
+                    return None
+                pose = sample[1]  # noqa: PLW2901
+        if have:
+            atx, aty, atz, ax, ay, az, aw = pose
+            cx = 2.0 * (ay * tz - az * ty)
+            cy = 2.0 * (az * tx - ax * tz)
+            cz = 2.0 * (ax * ty - ay * tx)
+            tx, ty, tz, bx, by, bz, bw = (
+                tx + aw * cx + ay * cz - az * cy + atx,
+                ty + aw * cy + az * cx - ax * cz + aty,
+                tz + aw * cz + ax * cy - ay * cx + atz,
+                aw * bx + ax * bw + ay * bz - az * by,
+                aw * by - ax * bz + ay * bw + az * bx,
+                aw * bz + ax * by - ay * bx + az * bw,
+                aw * bw - ax * bx - ay * by - az * bz,
+            )
+        else:
+            tx, ty, tz, bx, by, bz, bw = pose
+            have = True
+    return (tx, ty, tz, bx, by, bz, bw)
+
+
+reference_side: SideFn = make_side(
+    _scalar.interpolate, _scalar.interpolate_compose, _scalar.compose
+)
+"""The same as :func:`side` through the ``_scalar`` functions (the tests' reference)."""
 
 
 def run_plan(plan: Plan, t: int, caches: Caches, side: SideFn = side) -> Pose7 | None:

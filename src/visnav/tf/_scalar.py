@@ -9,8 +9,9 @@ objects; :mod:`visnav.tf.transforms` offers the numpy API for users.
 :func:`jit_kernels` returns the hot functions compiled by numba, for
 ``Buffer(jit=True)``: a call with tuples of floats then costs about a third of the
 interpreted arithmetic, for a one-time import and compile cost (measured in
-bench/bench_tf.py); the interpreted ``*_py`` functions are the default and the
-reference the tests compare the compiled ones with.
+bench/bench_tf.py). The default lookup path does not call these functions: it has the
+same arithmetic written out in its chain loop (:func:`visnav.tf._plan.side`); the
+``*_py`` functions are the reference the tests compare both with.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from collections.abc import Callable
 from math import acos, sin
 
 __all__ = [
+    "COS_TINY_THETA",
     "IDENTITY",
     "Pose7",
     "compose",
@@ -47,6 +49,8 @@ _NLERP_THETA = 1e-4
 # interpolate(): below this angle between the quaternions the slerp weights are linear.
 _TINY_THETA = 1e-7
 _COS_TINY_THETA = math.cos(_TINY_THETA)
+COS_TINY_THETA = _COS_TINY_THETA
+"""Quaternion dot products at or above this interpolate with linear weights."""
 
 
 def compose_py(a: Pose7, b: Pose7) -> Pose7:

@@ -66,7 +66,17 @@ from visnav.tf._buffer_io import (
 )
 from visnav.tf._cache import FrameCache
 from visnav.tf._can_transform import CanTransformMixin
-from visnav.tf._plan import Plan, SideFn, build_plan, latest_time, make_side, run_plan, side
+from visnav.tf._plan import (
+    DOWNWARD,
+    UPWARD,
+    Plan,
+    SideFn,
+    build_plan,
+    latest_time,
+    make_side,
+    run_plan,
+    side,
+)
 from visnav.tf._scalar import IDENTITY, Pose7
 from visnav.tf._tree import fmt_time, latest_common_time, walk
 from visnav.tf.errors import (
@@ -91,10 +101,11 @@ class Buffer(CanTransformMixin):
         cache_time: how much history to keep per frame, in seconds (or a
             ``builtin_interfaces/Duration``); tf2's default is 10 s.
         jit: compile the interpolation and composition arithmetic with numba: lookups
-            about 25 % faster (below tf2's C++ core through its Python binding, see
-            BENCHMARKS.md) for a one-time cost of about 0.4 s of CPU (numba's import
-            and its on-disk cache; about a second more the first time on a machine),
-            paid when the buffer is created. Results are equal to within 1e-12.
+            about 15 % faster than the default (which is already below tf2's C++ core
+            through its Python binding on the benchmark chain, see BENCHMARKS.md) for a
+            one-time cost of about 0.5 s of CPU (numba's import and its on-disk cache;
+            about a second more the first time on a machine), paid when the buffer is
+            created. Results are equal to within 1e-12.
 
     Example:
         >>> from visnav.msgs import Header, Quaternion, Time, Transform, TransformStamped, Vector3
@@ -313,23 +324,31 @@ class Buffer(CanTransformMixin):
         t = time_ns if type(time_ns) is int and time_ns >= 0 else to_ns(time_ns, "time")
         if timeout:
             self._wait(target_frame, source_frame, t, timeout_s(timeout))
-        with self._lock:
+        # acquire/release rather than ``with``: a third of the lock's cost on this hot path.
+        lock = self._lock
+        lock.acquire()
+        try:
             plan = self._plans.get((target_frame, source_frame))
             pose = None
+            inverted = False
             if plan is not None:
-                resolved = t if t else latest_time(plan, self._caches)
+                resolved = t or latest_time(plan, self._caches)
                 if resolved is not None:
-                    if not plan.target_steps:  # target is an ancestor of source
+                    kind = plan.kind
+                    if kind == UPWARD:  # target is an ancestor of source
                         pose = self._side(plan.source_steps, resolved)
-                    elif not plan.source_steps and plan.ancestor_cache is None:
-                        # source is the root above target: the inverse of target's chain
+                    elif kind == DOWNWARD:  # source is the root above target: invert
                         pose = self._side(plan.target_steps, resolved)
-                        if pose is not None:
-                            return inverse_to_msg(pose, target_frame, source_frame, resolved)
+                        inverted = True
                     else:
                         pose = run_plan(plan, resolved, self._caches, self._side)
             if pose is None:
                 pose, resolved = self._lookup(target_frame, source_frame, t)
+                inverted = False
+        finally:
+            lock.release()
+        if inverted:
+            return inverse_to_msg(pose, target_frame, source_frame, resolved)  # type: ignore[arg-type]
         return pose_to_msg(pose, target_frame, source_frame, resolved)  # type: ignore[arg-type]
 
     def lookup_transform_matrix(
@@ -340,9 +359,10 @@ class Buffer(CanTransformMixin):
         *,
         timeout: float | Duration = 0.0,
     ) -> NDArray[np.float64]:
-        """Return ``T_target_source`` as a 4x4 float64 matrix: the fast path.
+        """Return ``T_target_source`` as a 4x4 float64 matrix (for numpy code).
 
-        Arguments and errors as :meth:`lookup_transform`.
+        Arguments and errors as :meth:`lookup_transform`. Building the array costs about
+        1 us more than :meth:`lookup_transform`'s message (bench/bench_tf.py).
         """
         t = to_ns(time_ns, "time")
         if timeout:

@@ -265,6 +265,23 @@ class RerunSink:
             self.counts[topic] = self.counts.get(topic, 0) + 1
             return True
 
+    def log_error(self, topic: str, type_name: str, reason: str) -> None:
+        """Count a message of ``topic`` that could not even be decoded (warned once per topic).
+
+        A bag message whose bytes do not decode is skipped like a message that cannot be
+        shown: it is counted under ``errors`` in :meth:`stats`, the rest is still shown.
+
+        Raises:
+            VisnavError: only with ``strict=True``.
+        """
+        if self._strict:
+            msg = f"{topic} ({type_name}): {reason}"
+            raise VisnavError(msg)
+        with self._lock:
+            self.types.setdefault(topic, type_name)
+            self.errors[topic] = self.errors.get(topic, 0) + 1
+            self._warn_once(topic, "error", f"{topic} ({type_name}) skipped: {reason}")
+
     def poll(self) -> None:
         """Give up on data that waited too long for TF (call now and then when live)."""
         with self._lock:

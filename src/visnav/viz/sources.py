@@ -48,10 +48,14 @@ def feed_bag(
     Returns:
         The number of messages logged.
 
+    A message whose bytes do not decode is skipped and counted under ``errors`` in
+    ``sink.stats()`` (warned once per topic).
+
     Raises:
         BagError: the bag cannot be read (missing, corrupt, a topic not in it, ...).
     """
     from visnav.bag import BagReader  # noqa: PLC0415  (bags are only needed here)
+    from visnav.bag.errors import CorruptBagError  # noqa: PLC0415
 
     logged = 0
     with BagReader(path) as reader:
@@ -59,8 +63,13 @@ def feed_bag(
         if topics is not None:
             present = set(reader.topics)
             wanted = list(dict.fromkeys([*topics, *(t for t in _TF_TOPICS if t in present)]))
-        for i, (topic, _type_name, _t_ns, msg) in enumerate(reader.messages(wanted)):
-            if sink.log(topic, msg):
+        for i, raw in enumerate(reader.raw_messages(wanted)):
+            try:
+                msg = reader.decode(raw)
+            except CorruptBagError as exc:  # one bad message: skip it, show the rest (RViz)
+                sink.log_error(raw.topic, raw.type_name, str(exc))
+                continue
+            if sink.log(raw.topic, msg):
                 logged += 1
             if progress is not None and (i + 1) % 100 == 0:
                 progress(i + 1)
