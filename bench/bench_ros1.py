@@ -12,13 +12,17 @@ python3-rospy, python3-sensor-msgs). Starts its own ``roscore -p PORT`` and VISN
   ``--duration`` seconds after a 2 s warm-up from its first message), against a rospy
   publisher sending the same images to the same kind of rospy subscriber (the reference,
   measured in the same run). Target: ratio >= 0.8. Measured twice: with both publishers
-  flooding (no sleep: a visnav publisher then offers 3,000-4,000 images/s, a rospy one
-  500-1,000, most of them dropped by keep-last queues), and with both
-  offered the same rate (``--rate``, default 1000 Hz: more than either path carries here).
+  flooding (no sleep: a rospy publisher offers 500-1,000 images/s, most dropped by its
+  per-subscriber queue; a visnav one calls ``publish`` tens of thousands of times a second
+  and sends only while the bridge's paced subscription has room, the rest skipped), and
+  with both offered the same rate (``--rate``, default 1000 Hz: more than either path
+  carries here).
 * For each bulk run also the rate each publisher offered in the counting window (SIGUSR1
-  makes it print its count) and the CPU the processes used in it (cores: publisher, bridge,
-  rospy subscriber), and the bridge's CPU per image delivered: on a loaded machine the
-  scheduler's shares decide the rates, and these say where the CPU went.
+  makes it print its count), the rate a visnav one sent (not skipped), and the CPU the
+  processes used in it (cores: publisher, bridge, rospy subscriber, each also as CPU ms
+  per image delivered): on a loaded machine the scheduler's shares decide the rates, and
+  these say where the CPU went. The last lines give the median CPU per image delivered
+  of the bridge and of all processes of each path.
 
 ``--flood-only`` runs only the both-flooding bulk runs. Prints medians over repeats.
 """
@@ -111,8 +115,12 @@ with Context() as ctx:
     end = time.monotonic() + duration
     period = 1.0 / rate if rate > 0 else 0.0
     nxt = time.monotonic()
-    n = [0]  # SIGUSR1 prints the count and the time (the rate offered in a window)
-    signal.signal(signal.SIGUSR1, lambda *_: print(n[0], time.monotonic(), flush=True))
+    n = [0]  # SIGUSR1 prints the count, the time and the samples skipped (nobody had room)
+    zpub = pub._zpub
+    signal.signal(
+        signal.SIGUSR1,
+        lambda *_: print(n[0], time.monotonic(), getattr(zpub, "skipped", 0), flush=True),
+    )
     try:
         while time.monotonic() < end:
             msg.header.stamp = ns_to_time(time.time_ns())  # the same image, a new stamp (as rospy's)
@@ -203,11 +211,14 @@ def _result(
     res: dict[str, Any] = json.loads(line)
     res["cores"] = {k: (cpu1[k] - cpu0[k]) / (t1 - t0) for k in others}
     res["cores"]["sub"] = res["cpu_s"] / res["seconds"] if res["seconds"] else float("nan")
-    res["offered"] = float("nan")
+    res["offered"] = res["sent"] = float("nan")
     if counting:
         try:
-            (n0, s0), (n1, s1) = (map(float, pub.stdout.readline().split()) for _ in range(2))
+            (n0, s0, k0), (n1, s1, k1) = (
+                [*map(float, pub.stdout.readline().split()), 0.0][:3] for _ in range(2)
+            )
             res["offered"] = (n1 - n0) / (s1 - s0)
+            res["sent"] = (n1 - n0 - (k1 - k0)) / (s1 - s0)
         except ValueError:
             pass
     procs.stop(pub)
@@ -237,10 +248,17 @@ def _pct(values: list[float], q: float) -> float:
     return s[min(len(s) - 1, int(q * len(s)))] if s else float("nan")
 
 
-def _cores(res: dict[str, Any]) -> str:
+def _cores(res: dict[str, Any], seconds: float) -> str:
+    """Rates offered/sent, each process's cores and its CPU ms per image delivered."""
     cores = res["cores"]
-    parts = [f"{k} {cores[k]:.2f}" for k in ("pub", "bridge", "sub") if k in cores]
-    return f"offered {res['offered']:.0f}/s, cores: " + ", ".join(parts)
+    per = 1000.0 * seconds / max(res["count"], 1)
+    parts = [
+        f"{k} {cores[k]:.2f} ({cores[k] * per:.2f} ms/img)"
+        for k in ("pub", "bridge", "sub")
+        if k in cores
+    ]
+    sent = "" if res["sent"] != res["sent"] else f", sent {res['sent']:.0f}/s"
+    return f"offered {res['offered']:.0f}/s{sent}, cores: " + ", ".join(parts)
 
 
 def _bulk(procs: Procs, i: int, rate: float, args: argparse.Namespace, bridge: int) -> str:
@@ -250,12 +268,16 @@ def _bulk(procs: Procs, i: int, rate: float, args: argparse.Namespace, bridge: i
     ref = run_rospy(procs, f"/{tag}ref{i}", rate, args.duration)
     key = "offered" if rate else "flood"
     args.rates[key].append((vis["count"] / args.duration, ref["count"] / args.duration))
-    per_img = vis["cores"]["bridge"] / max(vis["count"] / args.duration, 1e-9) * 1000.0
-    args.bridge_ms[key].append(per_img)
+    per = 1000.0 * args.duration / max(vis["count"], 1)
+    args.bridge_ms[key].append(vis["cores"]["bridge"] * per)
+    ref_per = 1000.0 * args.duration / max(ref["count"], 1)
+    args.cpu_ms[key].append(
+        (sum(vis["cores"].values()) * per, sum(ref["cores"].values()) * ref_per)
+    )
     return (
         f"  {'offered ' + str(int(rate)) + ' Hz' if rate else 'flooding'}: visnav->rospy "
-        f"{vis['count'] / args.duration:.1f}/s ({_cores(vis)}; bridge {per_img:.2f} ms CPU per "
-        f"image delivered), rospy->rospy {ref['count'] / args.duration:.1f}/s ({_cores(ref)})"
+        f"{vis['count'] / args.duration:.1f}/s ({_cores(vis, args.duration)}), rospy->rospy "
+        f"{ref['count'] / args.duration:.1f}/s ({_cores(ref, args.duration)})"
     )
 
 
@@ -270,6 +292,7 @@ def main() -> None:
     args = parser.parse_args()
     args.rates = {"flood": [], "offered": []}
     args.bridge_ms = {"flood": [], "offered": []}
+    args.cpu_ms = {"flood": [], "offered": []}
     print("load average (1, 5, 15 min) at the start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     tmp = Path(tempfile.mkdtemp(prefix="bench_ros1_"))
     port = _free_port()
@@ -325,7 +348,9 @@ def main() -> None:
             print(
                 f"bulk, {what}: visnav -> rospy {vis:.1f} img/s, rospy -> rospy {ref:.1f} img/s, "
                 f"ratio of medians {vis / ref:.2f} (per run {ratios}; target >= 0.8); bridge "
-                f"CPU per image delivered {med(args.bridge_ms[key]):.2f} ms (median)"
+                f"CPU per image delivered {med(args.bridge_ms[key]):.2f} ms, all processes "
+                f"{med(c[0] for c in args.cpu_ms[key]):.2f} ms against "
+                f"{med(c[1] for c in args.cpu_ms[key]):.2f} ms for rospy -> rospy (medians)"
             )
         print(
             "load average (1, 5, 15 min) at the end: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())

@@ -17,7 +17,8 @@ from visnav.bridge.master import Ros1Master
 from visnav.bridge.master_api import MasterClient
 from visnav.bridge.ros1_node import Ros1Node
 from visnav.bridge.typemap import cdr_to_ros1, ros1_to_cdr, ros1_type
-from visnav.graph import Context, DurabilityPolicy, Node, QoSProfile
+from visnav.graph import Context, Node, Subscription
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import Clock, String, Twist, Vector3
 from visnav.msgs.serde import deserialize, get_message_class, serialize
 from visnav.msgs.time import ns_to_time
@@ -138,7 +139,7 @@ def test_topic_selected() -> None:
 
 def test_latched_clock_and_description_set_ros1_conventions(graphs: _Graphs) -> None:
     sim = Node("sim", context=graphs.ctx)
-    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    latched = qos_profile_latched
     desc = sim.create_publisher(String, "/robot_description", latched)
     desc.publish(String(data="<robot name='car'/>"))
     clock = sim.create_publisher(Clock, "/clock", 1)
@@ -246,7 +247,7 @@ def test_latched_ros1_map_reaches_late_visnav_publisher(graphs: _Graphs) -> None
 
     listener = Node("listener", context=graphs.ctx)
     got: list[Any] = []
-    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    latched = qos_profile_latched
     listener.create_subscription(OccupancyGrid, "/map", got.append, latched)
     bridge = graphs.start()
     assert graphs.spin_until(lambda: bridge.in_topics() == ["/map"])
@@ -380,6 +381,14 @@ def test_flood_from_another_process_is_paced_by_the_ros1_subscriber(
         return real_convert(self, out, data)
 
     monkeypatch.setattr(Ros1Bridge, "_convert", counting_convert)
+    pauses: list[int] = []
+    real_pause = Subscription.pause
+
+    def counting_pause(self: Subscription[Any]) -> None:
+        pauses.append(1)
+        real_pause(self)
+
+    monkeypatch.setattr(Subscription, "pause", counting_pause)
     with Context(domain) as bctx, Context(domain) as pctx:
         bridge = Ros1Bridge(
             Node("ros1_bridge", context=bctx), ros1, BridgeOptions(scan_period_s=0.05)
@@ -415,7 +424,10 @@ def test_flood_from_another_process_is_paced_by_the_ros1_subscriber(
             return len(got) >= 3
 
         assert bctx.spin_until(flowing, 15.0)
+        zpub = pub._zpub
+        assert zpub is not None
         before_sent, before_got, before_conv = sent[0], len(got), len(converted)
+        before_skipped, before_pauses = zpub.skipped, len(pauses)
         deadline = time.monotonic() + 1.5
         while time.monotonic() < deadline:  # flood: many times what the reader takes
             publish()
@@ -433,6 +445,10 @@ def test_flood_from_another_process_is_paced_by_the_ros1_subscriber(
         # converted: what was sent (the reader's, and what fits in the sockets' buffers)
         assert conv <= taken + 20
         assert sub.dropped > flood // 2  # dropped inside Zenoh, counted from the sequence
+        # most were never sent: the publisher heard that the bridge's subscription paused
+        assert zpub.skipped - before_skipped > flood // 2
+        # a pause lets PACE_AHEAD - PACE_RESUME messages through, not one
+        assert len(pauses) - before_pauses <= conv // 2 + 2
         assert got == sorted(got)
         bridge.close()
     peer.close()

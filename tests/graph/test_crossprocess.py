@@ -13,8 +13,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from visnav.graph import Context, DurabilityPolicy, Node, QoSProfile
+from visnav.graph import Context, Node
 from visnav.graph.introspect import wait_for_discovery
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import Image, String, Twist
 
 SCRIPTS = Path(__file__).parent / "scripts"
@@ -51,7 +52,7 @@ def test_discovery_and_typed_delivery_across_processes(
             String,
             "/latched",
             lambda m: latched.append(m.data),
-            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+            qos_profile_latched,
         )
         assert ctx.spin_until(lambda: len(strings) >= 3 and images and latched, 10.0)
         assert strings[0].startswith("hello ")

@@ -8,7 +8,7 @@ import pytest
 
 from visnav.graph import Context, Node
 from visnav.graph.introspect import new_published_topics, subscription_qos_for
-from visnav.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from visnav.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_latched
 from visnav.msgs import String
 
 
@@ -42,7 +42,7 @@ def test_only_published_unknown_visible_topics(ctx: Context) -> None:
 
 
 def test_subscription_qos_matches_every_publisher(ctx: Context) -> None:
-    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    latched = qos_profile_latched
     best_effort = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
     Node("a", context=ctx).create_publisher(String, "/latched", latched)
     qos = subscription_qos_for(ctx, "/latched")

@@ -7,13 +7,13 @@ import pytest
 
 from visnav.graph import (
     Context,
-    DurabilityPolicy,
     InvalidNameError,
     Node,
     QoSProfile,
     ReliabilityPolicy,
     TopicTypeConflictError,
 )
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import Clock, Image, String, Twist, make, ns_to_time
 
 
@@ -70,7 +70,7 @@ def test_keep_last_depth_drops_oldest(ctx: Context) -> None:
 
 def test_transient_local_late_joiner_and_incompatible_qos(ctx: Context) -> None:
     n = Node("n", context=ctx)
-    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    latched = qos_profile_latched
     pub = n.create_publisher(String, "/latched", latched)
     pub.publish(String(data="old"))
     pub.publish(String(data="map"))

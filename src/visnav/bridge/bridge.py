@@ -237,11 +237,13 @@ class Ros1Bridge:
 
         The subscription hands over the CDR bytes still in the transport's buffer; each ROS 1
         connection queues the message as it is and the conversion (and the one copy out of
-        the transport) runs when a connection sends it. The subscription is paced: while
-        every connection has messages queued behind the one it sends
-        (:data:`~visnav.bridge.ros1_node.PACE_AHEAD`), it is paused and the
-        newest messages wait in Zenoh (older ones dropped there, costing no Python code), so
-        a visnav publisher flooding thousands of images a second costs the bridge about what
+        the transport) runs when a connection sends it. The subscription is paced: once
+        every connection has :data:`~visnav.bridge.ros1_node.PACE_AHEAD` messages queued
+        behind the one it sends, it is paused until one is down to
+        :data:`~visnav.bridge.ros1_node.PACE_RESUME`. While paused, messages wait in Zenoh
+        (older ones dropped there, costing no Python code) and the topic's visnav publishers
+        hear of the pause and skip their samples (:mod:`visnav.graph.transport_pace`), so a
+        visnav publisher flooding thousands of images a second costs the bridge about what
         the ROS 1 subscribers take.
         """
 
@@ -254,7 +256,7 @@ class Ros1Bridge:
             sub = out.sub
             if not self.ros1.publish_deferred(out.topic, make, seq=seq) and sub is not None:
                 sub.pause()
-                if self.ros1.wants_more(out.topic):  # a queue emptied before the pause
+                if self.ros1.can_resume(out.topic):  # queues emptied before the pause
                     sub.resume()
 
         return self.node.create_subscription(cls, out.topic, forward, qos, raw=True, paced=True)
@@ -263,7 +265,7 @@ class Ros1Bridge:
         """A ROS 1 subscriber of ``topic`` can take more (runs on a connection's thread)."""
         out = self._out.get(topic)
         sub = None if out is None else out.sub
-        if sub is not None and sub.paced and sub.paused:
+        if sub is not None and sub.paced and sub.paused and self.ros1.can_resume(topic):
             sub.resume()
 
     def _convert(

@@ -33,7 +33,7 @@ from visnav.bridge.master_api import MasterClient, bind_address
 from visnav.bridge.tcpros import encode_header, read_header
 from visnav.bridge.typemap import Ros1Type, rosout_type
 
-__all__ = ["PACE_AHEAD", "Ros1Node", "ThreadingXmlRpcServer", "message_parts"]
+__all__ = ["PACE_AHEAD", "PACE_RESUME", "Ros1Node", "ThreadingXmlRpcServer", "message_parts"]
 
 _log = logging.getLogger("visnav.bridge")
 
@@ -44,6 +44,13 @@ from the visnav graph and keeps the socket full. With 2, a flooded rospy subscri
 frames one by one and deserialized each (rospy skips all but the newest ``queue_size`` of a
 batch it reads at once): 286 against 363 images per CPU-second of the subscriber
 (``bench/bench_ros1.py --flood-only``, 15 and 6 runs on a loaded machine)."""
+
+PACE_RESUME = 3
+"""A sender held back by :meth:`Ros1Node.wants_more` goes on once a subscriber of the topic has
+this many messages queued or fewer (:meth:`Ros1Node.can_resume`): each pause then lets
+``PACE_AHEAD - PACE_RESUME`` messages through, not one, so a flooded topic pauses and resumes
+(and tells its visnav publishers so) a third as often, while every queue keeps at least this
+many messages to send."""
 
 
 def message_parts(
@@ -277,6 +284,17 @@ class Ros1Node:
             pub = self._pubs.get(topic)
             conns = [] if pub is None else list(pub.conns)
         return not conns or any(c.queued() < PACE_AHEAD for c in conns)
+
+    def can_resume(self, topic: str) -> bool:
+        """Whether a subscriber of ``topic`` has :data:`PACE_RESUME` messages queued or fewer.
+
+        True also when there is none. A sender held back by :meth:`wants_more` goes on when
+        this is true (checked at each :attr:`on_room` call and right after stopping).
+        """
+        with self._lock:
+            pub = self._pubs.get(topic)
+            conns = [] if pub is None else list(pub.conns)
+        return not conns or any(c.queued() <= PACE_RESUME for c in conns)
 
     def _room(self, topic: str) -> None:
         on_room = self.on_room

@@ -56,7 +56,12 @@ from typing import TYPE_CHECKING, Any
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.faults import FaultBoundary
 from visnav.graph.graph_cache import GraphCache
-from visnav.graph.keys import LivelinessToken, liveliness_key_pattern
+from visnav.graph.keys import (
+    KeyExpressionError,
+    LivelinessToken,
+    liveliness_key_pattern,
+    parse_topic_key,
+)
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
@@ -125,6 +130,7 @@ class Context:
         self._shutdown = False
         self._watch: Any = None
         self.graph = GraphCache()
+        self._remote_subs: dict[str, tuple[int, frozenset[tuple[str, int]]]] = {}
         self.graph.add_listener(self._on_graph_change)
         self.graph.add_token_listener(self._on_token)
 
@@ -166,7 +172,9 @@ class Context:
             return None
         with self._zenoh_lock:
             if self._zenoh is None:
-                self._zenoh = ZenohTransport(self._config)
+                self._zenoh = ZenohTransport(
+                    self._config, remote_subscriptions=self.remote_subscriptions
+                )
                 self._watch = self._zenoh.watch_liveliness(
                     liveliness_key_pattern(self.domain), self.graph.put, self.graph.delete
                 )
@@ -177,6 +185,29 @@ class Context:
         """The Zenoh id of this context (``"0"`` for a local-only context)."""
         z = self.zenoh
         return z.zid if z is not None else "0"
+
+    def remote_subscriptions(self, key: str) -> frozenset[tuple[str, int]]:
+        """``(zid, entity id)`` of the subscriptions of a data key in other sessions.
+
+        From the graph (liveliness tokens), cached until it changes; publishers use it to
+        tell whether every remote subscription is a paused paced one.
+        """
+        version = self.graph.version
+        cached = self._remote_subs.get(key)
+        if cached is not None and cached[0] == version:
+            return cached[1]
+        try:
+            parsed = parse_topic_key(key)
+        except KeyExpressionError:
+            return frozenset()  # not a topic's data key: nothing to pace
+        own = self._zenoh.zid if self._zenoh is not None else ""
+        subs = frozenset(
+            (e.zid, e.entity_id)
+            for e in self.graph.endpoints(parsed.topic)
+            if e.kind == "subscription" and e.zid != own and e.type_name == parsed.type_name
+        )
+        self._remote_subs[key] = (version, subs)
+        return subs
 
     # ------------------------------------------------------------------ registry
     def register_node(self, node: Node) -> None:

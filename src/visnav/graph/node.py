@@ -131,7 +131,7 @@ class Publisher(Generic[MsgT]):
         self.sequence += 1
         self.node.context.deliver_local(self, msg)
         zpub = self._zpub
-        if zpub is not None and zpub.has_subscribers:
+        if zpub is not None and zpub.wants_sample():
             att = encode_attachment(self.sequence, time.time_ns(), self.entity_id, self._zid)
             zpub.put(self._cdr.serialize(msg), att)
 

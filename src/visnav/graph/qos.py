@@ -3,6 +3,11 @@
 The subset of DDS QoS that visnav honours: history (keep last N / keep all), depth,
 reliability and durability. ``/tf_static`` and latched topics use transient local:
 a late-joining subscription receives the last ``depth`` messages of each publisher.
+
+The ``qos_profile_*`` presets are rclpy's, plus two of visnav's own (rclpy has neither
+name): ``qos_profile_latched`` (depth 1, reliable, transient local: ROS 1's
+``latch=True``, what map_server's ``map``, ``robot_description`` and status topics use)
+and ``qos_profile_tf_static`` (the same values: tf2_ros's ``StaticBroadcasterQoS``).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ __all__ = [
     "QoSProfile",
     "ReliabilityPolicy",
     "check_qos_compatibility",
+    "qos_profile_latched",
     "qos_profile_parameters",
     "qos_profile_sensor_data",
     "qos_profile_services_default",
@@ -87,7 +93,10 @@ qos_profile_system_default = QoSProfile()
 qos_profile_sensor_data = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
 qos_profile_services_default = QoSProfile()
 qos_profile_parameters = QoSProfile(depth=1000)
-qos_profile_tf_static = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+qos_profile_latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""visnav's: the last message reaches late subscribers (ROS 1 ``latch=True``)."""
+qos_profile_tf_static = qos_profile_latched
+"""tf2_ros's ``StaticBroadcasterQoS``: ``qos_profile_latched``."""
 
 
 def to_qos(qos: QoSProfile | int) -> QoSProfile:

@@ -26,6 +26,13 @@ on. It costs one thread per paced subscription; its :class:`MessageInfo`'s
 ``received_timestamp_ns`` is when a sample left the ring, and :attr:`Subscription.dropped`
 counts the gaps in each publisher's sequence numbers. rclpy has no paced mode: there
 the middleware's queue (rmw_zenoh's, in C++) is what makes drops cheap.
+
+A paced subscription also tells the publishers of its topic when it pauses and resumes
+(:mod:`visnav.graph.transport_pace`): a volatile keep-last publisher whose remote
+subscriptions are all paused skips its samples (no serialization, no transfer), as a
+ROS 1 publisher's per-subscriber queue drops what the subscriber's socket does not take.
+While paused the ring then holds the samples sent before the publishers heard of the
+pause, not the newest ones; the skipped samples count in :attr:`Subscription.dropped`.
 """
 
 from __future__ import annotations
@@ -44,6 +51,7 @@ from visnav.graph.errors import GraphError
 from visnav.graph.message_info import MessageInfo, decode_attachment
 from visnav.graph.qos import DurabilityPolicy, QoSProfile
 from visnav.graph.transport import ZenohTransport, detach_small
+from visnav.graph.transport_pace import PaceReporter
 from visnav.msgs.serde import CdrSerializer, deserialize, msg_type_name
 
 if TYPE_CHECKING:
@@ -145,6 +153,7 @@ class Subscription(Generic[MsgT]):
         self._paused = False
         self._stopped = False
         self._pump: threading.Thread | None = None
+        self._reporter: PaceReporter | None = None
         self._zsub: Any = None
         self._zkey: str | None = None
         self._latest_seq: dict[tuple[str, int], int] = {}
@@ -232,6 +241,7 @@ class Subscription(Generic[MsgT]):
             self._zsub = z.subscriber(key, self.on_remote, history=self.wants_history)
             return
         self._zsub = z.ring_subscriber(key, self.qos.queue_limit or 1)
+        self._reporter = z.pace_reporter(key, self.entity_id, lambda: not self._paused)
         self._pump = threading.Thread(
             target=self._pump_loop,
             args=(self._zsub.handler,),
@@ -268,6 +278,7 @@ class Subscription(Generic[MsgT]):
         self._check_paced("pause")
         self._paused = True
         self._want.clear()
+        self._report()
 
     def resume(self) -> None:
         """Take remote samples again after :meth:`pause` (paced only).
@@ -279,6 +290,13 @@ class Subscription(Generic[MsgT]):
         self._paused = False
         if not self.queue:
             self._want.set()
+        self._report()
+
+    def _report(self) -> None:
+        """Tell the topic's publishers whether this subscription takes samples now."""
+        reporter = self._reporter
+        if reporter is not None:
+            reporter.report()
 
     @property
     def paused(self) -> bool:
@@ -297,6 +315,8 @@ class Subscription(Generic[MsgT]):
         """End the pump thread of a paced subscription (called when it is destroyed)."""
         self._stopped = True
         self._want.set()
+        if self._reporter is not None:
+            self._reporter.close()
 
     def on_remote(self, payload: RemotePayload, attachment: RemotePayload | None) -> None:
         """Queue a remote sample for the executor (runs on a transport thread).

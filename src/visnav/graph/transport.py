@@ -33,6 +33,12 @@ import zenoh
 from zenoh import shm as zshm
 
 from visnav.graph.errors import TransportError
+from visnav.graph.transport_pace import (
+    PaceRefresher,
+    PaceReporter,
+    PaceTracker,
+    RemoteSubscriptions,
+)
 
 __all__ = [
     "ENV_CONNECT",
@@ -193,6 +199,10 @@ class ZenohPublisher:
     visnav does this itself rather than with zenoh-ext's advanced publisher, whose
     history queries keep one sample per key expression: with two latched publishers
     of one topic (two static TF broadcasters) a late joiner got only one of them.
+
+    Volatile publishers that may drop (not ``block``) given ``remote_subscriptions``
+    skip samples while every remote subscription is a paused paced one
+    (:meth:`wants_sample`, see :mod:`visnav.graph.transport_pace`).
     """
 
     def __init__(
@@ -204,6 +214,7 @@ class ZenohPublisher:
         block: bool = False,
         shm: Any = None,
         publisher_id: int = 0,
+        remote_subscriptions: RemoteSubscriptions | None = None,
     ) -> None:
         self._shm = shm
         # As rmw_zenoh: block only for keep-all reliable topics, else drop under congestion
@@ -224,6 +235,9 @@ class ZenohPublisher:
             self._queryable = session.declare_queryable(
                 self._qkey, self._on_query, allowed_origin=zenoh.Locality.REMOTE
             )
+        self._pace: PaceTracker | None = None
+        if cache_depth is None and not block and remote_subscriptions is not None:
+            self._pace = PaceTracker(session, key, remote_subscriptions)
 
     def _on_matching(self, status: Any) -> None:
         self._matching = bool(status.matching)
@@ -238,6 +252,24 @@ class ZenohPublisher:
     def has_subscribers(self) -> bool:
         """True when a remote subscriber matches (always True for latched publishers)."""
         return self._cache is not None or self._matching
+
+    def wants_sample(self) -> bool:
+        """Whether to send the next sample: a remote subscriber matches and one can take it.
+
+        False while every remote subscription is a paced one that is paused (counted in
+        :attr:`skipped`); the caller then skips serializing the sample too.
+        """
+        if self._cache is not None:
+            return True
+        if not self._matching:
+            return False
+        pace = self._pace
+        return pace is None or not pace.all_paused()
+
+    @property
+    def skipped(self) -> int:
+        """Samples skipped because every remote subscription was paused."""
+        return 0 if self._pace is None else self._pace.skipped
 
     def put(self, payload: bytes | bytearray, attachment: bytes | None = None) -> None:
         """Send one payload (with an optional attachment).
@@ -264,6 +296,8 @@ class ZenohPublisher:
 
     def close(self) -> None:
         """Undeclare the publisher (and its cache queryable)."""
+        if self._pace is not None:
+            self._pace.close()
         with contextlib.suppress(Exception):
             self._listener.undeclare()
             self._pub.undeclare()
@@ -279,8 +313,25 @@ def detach_small(payload: zenoh.ZBytes) -> zenoh.ZBytes | bytes:
 class ZenohTransport:
     """A Zenoh session configured for one visnav graph domain."""
 
-    def __init__(self, config: TransportConfig) -> None:
+    def __init__(
+        self,
+        config: TransportConfig,
+        *,
+        remote_subscriptions: RemoteSubscriptions | None = None,
+    ) -> None:
+        """Open the session.
+
+        Args:
+            config: where to listen and connect.
+            remote_subscriptions: the subscriptions of a data key in other sessions (the
+                context's graph); without it publishers never skip samples for paused
+                paced subscriptions.
+
+        Raises:
+            TransportError: Zenoh cannot open the session.
+        """
         self.config = config
+        self._remote_subscriptions = remote_subscriptions
         try:
             self._session = zenoh.open(zenoh.Config.from_json5(json.dumps(config.zenoh_config())))
         except Exception as exc:
@@ -293,6 +344,7 @@ class ZenohTransport:
         self._lock = threading.Lock()
         self._shm: Any = None
         self._shm_failed = False
+        self._refresher = PaceRefresher()
 
     @property
     def session(self) -> zenoh.Session:
@@ -327,7 +379,12 @@ class ZenohTransport:
             block=block,
             shm=self._shm_provider(),
             publisher_id=publisher_id,
+            remote_subscriptions=self._remote_subscriptions,
         )
+
+    def pace_reporter(self, key: str, entity_id: int, has_room: Callable[[], bool]) -> PaceReporter:
+        """Declare where a paced subscription of ``key`` reports whether it has room."""
+        return PaceReporter(self._session, key, self.zid, entity_id, has_room, self._refresher)
 
     def _shm_provider(self) -> Any:
         """The session's shared-memory provider (made on first use; None if unavailable)."""
@@ -432,5 +489,6 @@ class ZenohTransport:
             if self._closed:
                 return
             self._closed = True
+        self._refresher.close()
         with contextlib.suppress(Exception):
             self._session.close()  # type: ignore[no-untyped-call]

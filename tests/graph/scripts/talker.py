@@ -10,7 +10,8 @@ import sys
 
 import numpy as np
 
-from visnav.graph import Context, DurabilityPolicy, Node, QoSProfile
+from visnav.graph import Context, Node
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import Header, Image, String, make, ns_to_time
 
 duration = float(sys.argv[1]) if len(sys.argv) > 1 else 10.0
@@ -18,9 +19,7 @@ with Context() as ctx:
     node = Node("talker", namespace="/robot", context=ctx)
     chatter = node.create_publisher(String, "chatter", 10)
     image = node.create_publisher(Image, "/image", 5)
-    latched = node.create_publisher(
-        String, "/latched", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    )
+    latched = node.create_publisher(String, "/latched", qos_profile_latched)
     latched.publish(String(data="latched-hello"))
     count = [0]
 
