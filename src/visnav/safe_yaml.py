@@ -18,6 +18,12 @@ or a subclass of :class:`LimitedSafeLoader`. The loader is PyYAML's
   :class:`YamlError` (or the caller's own error class) naming the file, the line
   and column, the problem and the fix.
 
+Files whose later errors must name a line (launch files, worlds) load with
+:func:`load_yaml_lines`: every mapping is a :class:`LineMap` that remembers its line,
+a key written twice in one mapping is an error (PyYAML keeps the last silently), and
+merge keys (``<<: *defaults``) work as YAML 1.1 says: the mapping's own keys override
+merged ones, and of several merged mappings the first wins.
+
 This module sits at the root of the package (beside ``errors.py``) so that every
 layer may use it.
 """
@@ -33,7 +39,16 @@ import yaml
 from visnav.errors import VisnavError
 from visnav.textfile import read_text
 
-__all__ = ["MAX_ALIAS_NODES", "LimitedSafeLoader", "YamlError", "load_yaml", "load_yaml_file"]
+__all__ = [
+    "MAX_ALIAS_NODES",
+    "LimitedSafeLoader",
+    "LineLoader",
+    "LineMap",
+    "YamlError",
+    "load_yaml",
+    "load_yaml_file",
+    "load_yaml_lines",
+]
 
 MAX_ALIAS_NODES = 100_000
 """Default cap on the nodes that alias expansion may add to one document."""
@@ -244,3 +259,134 @@ def load_yaml_file(
     """
     text = read_text(path, what=what, error=error)
     return load_yaml(text, source=str(path), what=what, loader=loader, error=error)
+
+
+class LineMap(dict[Any, Any]):
+    """A YAML mapping that remembers the line it starts on (1-based; None if built by hand)."""
+
+    line: int | None = None
+
+
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+_VALUE_TAG = "tag:yaml.org,2002:value"
+
+_Pair = tuple[yaml.Node, yaml.Node]
+
+
+class LineLoader(LimitedSafeLoader):
+    """:class:`LimitedSafeLoader` whose mappings are :class:`LineMap` (see the module docstring).
+
+    Set :attr:`string_keys` on a subclass to turn every key into ``str`` (YAML ``1:`` and
+    ``true:`` become ``"1"`` and ``"True"``) for formats whose keys are names.
+    """
+
+    string_keys: ClassVar[bool] = False
+
+
+class _StringKeyLineLoader(LineLoader):
+    string_keys = True
+
+
+def _split_merges(node: yaml.MappingNode) -> tuple[list[_Pair], list[_Pair]]:
+    """``(merged pairs, own pairs)`` of a mapping, without changing the node.
+
+    Merged pairs are in override order (a later pair wins): the last merged mapping
+    first, so the first one written wins, as PyYAML's ``flatten_mapping``. The alias
+    limit has already bounded what merges can add.
+
+    Raises:
+        yaml.constructor.ConstructorError: a merge value that is not a mapping or a
+            list of mappings.
+    """
+    merged: list[_Pair] = []
+    own: list[_Pair] = []
+    for key_node, value_node in node.value:
+        if key_node.tag != _MERGE_TAG:
+            if key_node.tag == _VALUE_TAG:  # the '=' key is a plain string (as PyYAML)
+                key_node.tag = "tag:yaml.org,2002:str"
+            own.append((key_node, value_node))
+            continue
+        sources = value_node.value if isinstance(value_node, yaml.SequenceNode) else [value_node]
+        for source in reversed(sources):
+            if not isinstance(source, yaml.MappingNode):
+                raise yaml.constructor.ConstructorError(
+                    None,
+                    None,
+                    "a merge key '<<' takes a mapping or a list of mappings (an alias such "
+                    "as *defaults); fix: merge a mapping, or use another key name",
+                    source.start_mark,
+                )
+            inner_merged, inner_own = _split_merges(source)
+            merged.extend(inner_merged)
+            merged.extend(inner_own)
+    return merged, own
+
+
+def _key(loader: LineLoader, key_node: yaml.Node) -> Any:
+    key = loader.construct_object(key_node, deep=True)
+    if loader.string_keys:
+        return str(key)
+    try:
+        hash(key)
+    except TypeError:
+        raise yaml.constructor.ConstructorError(
+            None,
+            None,
+            f"a key is a {type(key).__name__}, which cannot be a mapping key; fix: write "
+            "the key as a plain word or number",
+            key_node.start_mark,
+        ) from None
+    return key
+
+
+def _construct_line_map(loader: LineLoader, node: yaml.MappingNode) -> LineMap:
+    merged, own = _split_merges(node)
+    result = LineMap()
+    result.line = node.start_mark.line + 1
+    for key_node, value_node in merged:  # later ones override earlier ones
+        result[_key(loader, key_node)] = loader.construct_object(value_node, deep=True)
+    written: set[Any] = set()
+    for key_node, value_node in own:
+        key = _key(loader, key_node)
+        if key in written:
+            raise yaml.constructor.ConstructorError(
+                None,
+                None,
+                f"duplicate key {key!r}: {key!r} appears twice in one mapping; fix: keep one",
+                key_node.start_mark,
+            )
+        written.add(key)
+        result[key] = loader.construct_object(value_node, deep=True)
+    return result
+
+
+LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_line_map)
+
+
+def load_yaml_lines(
+    text: str,
+    *,
+    source: str,
+    what: str = "the file",
+    error: Callable[[str], Exception] = YamlError,
+    string_keys: bool = False,
+) -> Any:
+    """Load one YAML document whose mappings are :class:`LineMap` (module docstring).
+
+    Args:
+        text: the YAML text.
+        source: the file it came from, for messages.
+        what: what the text is meant to be (``"the world file"``).
+        error: the exception class raised on failure.
+        string_keys: turn every mapping key into ``str``.
+
+    Returns:
+        The Python value (None for an empty document).
+
+    Raises:
+        YamlError: (or ``error``) as :func:`load_yaml`, and for a key written twice in one
+            mapping, an unhashable key or a merge of something that is not a mapping,
+            each with its line.
+    """
+    loader = _StringKeyLineLoader if string_keys else LineLoader
+    return load_yaml(text, source=source, what=what, loader=loader, error=error)

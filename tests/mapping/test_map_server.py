@@ -13,7 +13,7 @@ import pytest
 
 from visnav.cli.main import main
 from visnav.graph import Context, Node
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import qos_profile_latched
 from visnav.mapping.map_io import MapFileError, MapMetadata, OccupancyMap, load_map, save_map
 from visnav.mapping.map_server_node import MapServerNode
 from visnav.msgs.types import MapMetaData, OccupancyGrid
@@ -36,7 +36,7 @@ def test_map_server_publishes_latched_map(tmp_path: Path, domain: int) -> None:
         got: list[OccupancyGrid] = []
         meta: list[MapMetaData] = []
         late = Node("late", context=ctx)  # subscribes after the one publication: latched
-        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        qos = qos_profile_latched
         late.create_subscription(OccupancyGrid, "/map", got.append, qos)
         late.create_subscription(MapMetaData, "/map_metadata", meta.append, qos)
         assert ctx.spin_until(lambda: bool(got) and bool(meta), 5.0)

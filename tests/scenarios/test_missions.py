@@ -9,7 +9,7 @@ import pytest
 
 from visnav.description.world import load_world
 from visnav.graph import Context, Node
-from visnav.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from visnav.graph.qos import QoSProfile, ReliabilityPolicy, qos_profile_latched
 from visnav.msgs.construct import make
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time
@@ -86,7 +86,7 @@ def test_car_goals_wait_for_odometry_and_follow_move_base_status() -> None:
 def test_drone_mission_holds_then_sends_the_goal() -> None:
     with Context(transport="local") as ctx:
         test = Node("test", context=ctx)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        latched = qos_profile_latched
         holds: list[PoseStamped] = []
         goals: list[PoseStamped] = []
         mission = DroneMission(context=ctx, namespace="/drone", use_sim_time=True)

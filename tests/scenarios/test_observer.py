@@ -14,8 +14,11 @@ from visnav.msgs.construct import make
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Clock, Header, Odometry, PoseStamped
+from visnav.msgs.types import Path as PathMsg
+from visnav.scenarios import observer_results
 from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.observer import ObserverNode
+from visnav.slam import ate, read_tum
 
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 DIAG = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
@@ -179,6 +182,62 @@ def test_drone_summary_from_planner_diagnostics(tmp_path: Path) -> None:
     assert summary["planning_time_ms"]["median"] == pytest.approx(5.5)
     assert summary["planning_time_ms"]["max"] == 10.0
     assert summary["min_clearance_m"] is not None
+
+
+def _slam_pose(t_ns: int, x: float, y: float) -> PoseStamped:
+    msg: PoseStamped = make(PoseStamped)
+    msg.header = Header(stamp=ns_to_time(t_ns), frame_id="map")
+    msg.pose.position.x, msg.pose.position.y = x, y
+    msg.pose.orientation.w = 1.0
+    return msg
+
+
+def test_car_slam_scores_and_files_from_slam_topics(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """slam/path + later slam/pose against interpolated truth; trajectories computed once."""
+    calls = []
+    original = observer_results.slam_trajectories
+
+    def counted(node: ObserverNode) -> observer_results.SlamTrajectories:
+        calls.append(node)
+        return original(node)
+
+    monkeypatch.setattr(observer_results, "slam_trajectories", counted)
+    params = _params(tmp_path, slam=True, exit_when_done=False)
+    ms = 1_000_000
+    with Context(transport="local") as ctx:
+        obs = ObserverNode(context=ctx, use_sim_time=True, parameter_overrides=params)
+        feed = Feed(ctx)
+        node = Node("slam_feed", context=ctx)
+        path_pub = node.create_publisher(PathMsg, "/slam/path", 1)
+        pose_pub = node.create_publisher(PoseStamped, "/slam/pose", 10)
+        for k in range(51):  # truth at 50 Hz on a curve (x, y) = (t, t^2)
+            feed.pose(k * 20 * ms, 0.02 * k, (0.02 * k) ** 2)
+            ctx.spin_some()
+        # SLAM at 10 Hz, 3 cm off in y: a path of 5 poses, then 5 poses (one a repeat)
+        poses = [_slam_pose(k * 100 * ms, 0.1 * k, (0.1 * k) ** 2 + 0.03) for k in range(10)]
+        path_pub.publish(make(PathMsg, header=poses[0].header, poses=poses[:5]))
+        for msg in poses[4:]:
+            pose_pub.publish(msg)
+        kv = [make(KV, key=k, value=v) for k, v in (("frames", "10"), ("keyframes", "3"))]
+        kv.append(make(KV, key="cpu_s", value="1.234"))
+        feed.diag.publish(make(DIAG, status=[make(DSTATUS, name="/slam", values=kv)]))
+        feed.tick(1000 * ms)
+        summary = obs.finish()
+    slam = summary["slam"]
+    assert len(calls) == 1  # the summary and the TUM files share one computation
+    assert slam["tracked"] == 10  # the path's 5 and the 5 later poses
+    assert slam["evaluated"] == 10
+    assert slam["ate_unaligned_rmse_m"] == pytest.approx(0.03, abs=1e-6)
+    assert slam["ate_rmse_m"] == pytest.approx(0.0, abs=1e-6)
+    assert slam["rpe_trans_rmse_m"] == pytest.approx(0.0, abs=1e-6)
+    assert (slam["frames"], slam["keyframes"], slam["cpu_s"]) == (10, 3, 1.23)
+    est = read_tum(tmp_path / "slam_trajectory.tum")
+    gt = read_tum(tmp_path / "ground_truth.tum")
+    assert len(est) == len(gt) == 10
+    assert est.stamps.tolist() == gt.stamps.tolist()
+    assert ate(est, gt).rmse == pytest.approx(0.03, abs=1e-6)
 
 
 def test_an_unknown_scenario_is_refused() -> None:

@@ -10,7 +10,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from visnav.scenarios.observer import _goal_index, parse_planner_status
-from visnav.scenarios.observer_metrics import ContactEvents, PoseErrors, path_length, pose_error
+from visnav.scenarios.observer_metrics import (
+    ContactEvents,
+    PoseErrors,
+    interpolate_poses,
+    path_length,
+    pose_error,
+    slam_metrics,
+)
+from visnav.slam import Trajectory
 
 
 def _pose(x: float, y: float, yaw: float) -> np.ndarray:
@@ -43,6 +51,47 @@ def test_path_length_and_pose_error() -> None:
     assert heading == pytest.approx(0.2)
     # heading errors wrap at +-pi
     assert pose_error(_pose(0, 0, 3.1), _pose(0, 0, -3.1))[1] == pytest.approx(6.2 - 2 * math.pi)
+
+
+def test_interpolate_poses_exact_at_samples_and_between() -> None:
+    stamps = np.array([0, 100, 200], dtype=np.int64)
+    mats = np.stack([_pose(0, 0, 0), _pose(1, 0, 0.2), _pose(1, 2, 0.4)])
+    idx, out = interpolate_poses(stamps, mats, np.array([-5, 0, 50, 150, 200, 201]))
+    assert idx.tolist() == [1, 2, 3, 4]  # outside the known span: left out
+    np.testing.assert_allclose(out[0], mats[0], atol=1e-12)
+    np.testing.assert_allclose(out[3], mats[2], atol=1e-12)
+    np.testing.assert_allclose(out[1], _pose(0.5, 0, 0.1), atol=1e-12)
+    np.testing.assert_allclose(out[2], _pose(1, 1, 0.3), atol=1e-12)
+    none, empty = interpolate_poses(stamps[:1], mats[:1], np.array([0]))
+    assert len(none) == 0
+    assert empty.shape == (0, 4, 4)
+    outside, nothing = interpolate_poses(stamps, mats, np.array([300, 400]))
+    assert len(outside) == 0
+    assert nothing.shape == (0, 4, 4)
+
+
+def test_slam_metrics_aligned_and_unaligned() -> None:
+    stamps = np.arange(20) * 0.1
+    ref = Trajectory.from_matrices(
+        stamps, np.stack([_pose(0.1 * i, 0.02 * i**1.5, 0.05 * i) for i in range(20)])
+    )
+    shifted = ref.matrices()
+    shifted[:, :3, 3] += [0.03, -0.04, 0.0]  # a constant 5 cm offset: alignment removes it
+    est = Trajectory.from_matrices(stamps, shifted)
+    m = slam_metrics(est, ref)
+    assert m["ate_unaligned_rmse_m"] == pytest.approx(0.05, abs=1e-5)
+    assert m["ate_rmse_m"] == pytest.approx(0.0, abs=1e-5)
+    assert m["rpe_trans_rmse_m"] == pytest.approx(0.0, abs=1e-5)
+    assert m["rpe_rot_rmse_deg"] == pytest.approx(0.0, abs=1e-4)
+    assert set(slam_metrics(est.subset([0, 1]), ref.subset([0, 1])).values()) == {None}
+
+
+def test_slam_metrics_of_a_car_that_did_not_move() -> None:
+    stamps = np.arange(5) * 0.1
+    still = Trajectory.from_matrices(stamps, np.stack([_pose(1.0, 2.0, 0.3)] * 5))
+    m = slam_metrics(still, still)
+    assert m["ate_rmse_m"] is None  # alignment of a single point is undefined
+    assert m["ate_unaligned_rmse_m"] == 0.0
 
 
 def test_pose_errors_summary() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import filecmp
 import json
 import subprocess
 import sys
@@ -164,3 +165,31 @@ def test_the_default_car_run_navigates_on_its_own_slam(tmp_path: Path) -> None:
     assert summary["odometry_drift_m"] >= 0.3  # the loop, not the odometry, keeps it localised
     assert loc["rmse_m"] <= 0.15
     assert loc["max_m"] <= 0.40
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(2400)  # two runs of ~5 min alone on 2 cores
+def test_car_run_slam_acceptance(tmp_path: Path) -> None:
+    """Issue 9: the ideal-sensor car run (seed 0, SLAM beside navigation) meets its targets."""
+    runs = []
+    for name in ("a", "b"):
+        with Context(transport="local") as c:
+            runs.append(
+                run_scenario(
+                    "car", seed=0, out=tmp_path / name, ideal_sensors=True, context=c, progress=None
+                )
+            )
+    first = runs[0]
+    slam = first["slam"]
+    assert first["sim_duration_s"] >= 60.0
+    assert slam["tracking_lost"] == 0
+    assert slam["tracked"] == slam["frames"] > 500
+    assert slam["evaluated"] >= slam["tracked"] - 1  # the first frame may precede the truth
+    assert slam["loop_closures"] >= 1
+    assert slam["ate_rmse_m"] <= 0.02
+    assert filecmp.cmp(
+        tmp_path / "a" / "slam_trajectory.tum",
+        tmp_path / "b" / "slam_trajectory.tum",
+        shallow=False,
+    )
+    assert runs[1]["slam"]["ate_rmse_m"] == slam["ate_rmse_m"]

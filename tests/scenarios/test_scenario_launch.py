@@ -67,6 +67,13 @@ def test_car_file_matches_the_robot_and_the_world() -> None:
     slam = loop["slam"].params  # type: ignore[attr-defined]
     assert (slam["publish_tf"], slam["odom_frame"], slam["worker"]) == (True, "odom", "process")
     assert (slam["initial_pose.x"], slam["initial_pose.y"]) == pytest.approx((x, y))
+    # one spawn pose (the lets spawn_x/y/yaw) for the static map -> odom, SLAM and AMCL
+    amcl = _nodes("car", use_map="true", map="/tmp/m.yaml")["amcl"].params  # type: ignore[attr-defined]
+    for start in (slam, amcl):
+        assert (start["initial_pose.x"], start["initial_pose.y"], start["initial_pose.yaw"]) == (
+            pytest.approx((x, y, yaw))
+        )
+        assert isinstance(start["initial_pose.yaw"], float)
     assert loop["observer"].params["localization_source"] == "slam"  # type: ignore[attr-defined]
     bounds = load_world("office", seed=0).metadata["bounds"]
     mapper = nodes["mapper"].params  # type: ignore[attr-defined]

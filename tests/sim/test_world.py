@@ -13,18 +13,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from visnav.description.errors import WorldError, WorldWarning
 from visnav.description.sdf_world import parse_sdf_world
-from visnav.description.world import (
-    Box,
-    Cylinder,
-    Sphere,
-    WorldDescription,
-    WorldError,
-    WorldWarning,
-    builtin_world_names,
-    load_world,
-    world_from_dict,
-)
+from visnav.description.world import builtin_world_names, load_world
+from visnav.description.world_yaml import world_from_dict
+from visnav.description.worldmodel import Box, Cylinder, Sphere, WorldDescription
 from visnav.sim.world_geometry import (
     obstacle_distance,
     shape_aabb,

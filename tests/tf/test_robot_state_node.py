@@ -8,7 +8,8 @@ import pytest
 
 from visnav.description.robots import resolve_robot
 from visnav.description.urdf import RobotDescriptionError
-from visnav.graph import Context, DurabilityPolicy, Node, QoSProfile
+from visnav.graph import Context, Node
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import String, TFMessage
 from visnav.tf.robot_state import joint_state_message
 from visnav.tf.robot_state_node import (
@@ -17,7 +18,7 @@ from visnav.tf.robot_state_node import (
     kinematics_only,
 )
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = qos_profile_latched
 
 
 @pytest.fixture

@@ -16,6 +16,7 @@ from visnav.tf.transforms import (
     euler_from_quaternion,
     matrix_from_euler,
     quaternion_from_euler,
+    quaternion_from_yaw,
     quaternion_to_matrix,
     translation_quaternion_to_matrix,
     yaw_from_matrix,
@@ -112,6 +113,26 @@ def test_matrix_from_euler_matches_scipy(roll: float, pitch: float, yaw: float) 
         quaternion_to_matrix(quaternion_from_euler(roll, pitch, yaw)),
         atol=1e-12,
     )
+
+
+@relaxed
+@given(angles)
+def test_quaternion_from_yaw_matches_scipy_and_inverts_yaw(yaw: float) -> None:
+    q = quaternion_from_yaw(yaw)
+    assert isinstance(q, Quaternion)
+    xyzw = (q.x, q.y, q.z, q.w)
+    expected = Rotation.from_euler("z", yaw).as_matrix()
+    np.testing.assert_allclose(quaternion_to_matrix(xyzw), expected, atol=1e-12)
+    np.testing.assert_allclose(quaternion_from_euler(0.0, 0.0, yaw), xyzw, atol=1e-15)
+    assert _wrapped_diff(yaw_from_quaternion(q), yaw) < 1e-12
+    # the callers it replaced wrote this form; the same bits keep trajectories
+    assert xyzw == (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_quaternion_from_yaw_refuses_non_finite(bad: float) -> None:
+    with pytest.raises(InvalidArgumentException, match="yaw is"):
+        quaternion_from_yaw(bad)
 
 
 def test_matrix_from_euler_refuses_non_finite_angles() -> None:

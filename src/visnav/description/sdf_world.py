@@ -1,6 +1,6 @@
 """A subset of SDF worlds, for users coming from Gazebo.
 
-Supported (everything else produces a :class:`~visnav.description.worldmodel.WorldWarning`
+Supported (everything else produces a :class:`~visnav.description.errors.WorldWarning`
 naming the element and its line, and is skipped):
 
 * ``<sdf><world>`` (or a bare ``<sdf><model>``);
@@ -36,6 +36,7 @@ from xml.parsers import expat
 
 import numpy as np
 
+from visnav.description.errors import WorldError, WorldWarning
 from visnav.description.rigid import rpy_to_matrix
 from visnav.description.world_yaml import mesh_bounds
 from visnav.description.worldmodel import (
@@ -48,8 +49,6 @@ from visnav.description.worldmodel import (
     Physics,
     Sphere,
     WorldDescription,
-    WorldError,
-    WorldWarning,
 )
 from visnav.textfile import read_text
 

@@ -42,7 +42,13 @@ from the world seed and their name, so ``load_world(..., seed=n)`` re-rolls
 every unseeded texture. Unknown keys are errors, not silently ignored.
 
 In the MuJoCo spec every world element is named ``world/<name>``; collision-only
-shapes are in geom group 3, which visnav cameras do not draw. The full reference,
+shapes are in geom group 3, which visnav cameras do not draw.
+
+Each name has one home: this module loads worlds (:func:`load_world`,
+:func:`builtin_world_names`); the world types (``WorldDescription``, ``Box``, ...) are in
+:mod:`visnav.description.worldmodel`, :func:`~visnav.description.world_yaml.world_from_dict`
+(a world from a dict) in :mod:`visnav.description.world_yaml`, ``WorldError`` and
+``WorldWarning`` in :mod:`visnav.description.errors`. The full reference,
 with the SDF subset and the built-in worlds, is ``docs/worlds.md``.
 """
 
@@ -53,48 +59,16 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from visnav.description.errors import WorldError
 from visnav.description.sdf_world import load_sdf_world
-from visnav.description.world_yaml import load_yaml_world, mesh_bounds, world_from_dict
-from visnav.description.worldmodel import (
-    Box,
-    Cylinder,
-    Ground,
-    Headlight,
-    Light,
-    Material,
-    Mesh,
-    Physics,
-    Shape,
-    Sphere,
-    Texture,
-    WorldDescription,
-    WorldError,
-    WorldWarning,
-)
+from visnav.description.world_yaml import load_yaml_world, world_from_dict
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-__all__ = [
-    "Box",
-    "Cylinder",
-    "Ground",
-    "Headlight",
-    "Light",
-    "Material",
-    "Mesh",
-    "Physics",
-    "Shape",
-    "Sphere",
-    "Texture",
-    "WorldDescription",
-    "WorldError",
-    "WorldWarning",
-    "builtin_world_names",
-    "load_world",
-    "mesh_bounds",
-    "world_from_dict",
-]
+    from visnav.description.worldmodel import WorldDescription
+
+__all__ = ["builtin_world_names", "load_world"]
 
 _YAML_SUFFIXES = (".yaml", ".yml")
 _SDF_SUFFIXES = (".sdf", ".world")

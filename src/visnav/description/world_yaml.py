@@ -10,12 +10,11 @@ import difflib
 import math
 import zlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
-import yaml
 
-from visnav.description.errors import MeshFileError
+from visnav.description.errors import MeshFileError, WorldError
 from visnav.description.mesh_files import mesh_vertices
 from visnav.description.worldmodel import (
     Box,
@@ -30,9 +29,8 @@ from visnav.description.worldmodel import (
     Sphere,
     Texture,
     WorldDescription,
-    WorldError,
 )
-from visnav.safe_yaml import LimitedSafeLoader, load_yaml
+from visnav.safe_yaml import load_yaml_lines
 from visnav.textfile import read_text
 
 if TYPE_CHECKING:
@@ -110,30 +108,7 @@ _PHYSICS_KEYS = ("timestep", "gravity", "integrator")
 
 DEFAULT_GROUND_MATERIAL = "ground_default"
 
-
-class _Map(dict[str, Any]):
-    """A YAML mapping that remembers the line it started on (1-based)."""
-
-    line: int | None = None
-
-
-class _LineLoader(LimitedSafeLoader):
-    """SafeLoader whose mappings carry line numbers and reject duplicate keys."""
-
-
-def _construct_map(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
-    result = _Map()
-    result.line = node.start_mark.line + 1
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if key in result:
-            msg = f"duplicate key {key!r}"
-            raise yaml.constructor.ConstructorError(None, None, msg, key_node.start_mark)
-        result[str(key)] = loader.construct_object(value_node, deep=True)
-    return result
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
+_T = TypeVar("_T")
 
 
 class _Reader:
@@ -375,54 +350,74 @@ def _parse_light(reader: _Reader, index: int, node: object) -> Light:
     return cast("Light", _call(reader, node, path, lambda: Light(**kwargs)))
 
 
+def _fields(
+    node: Mapping[str, Any], section: str, readers: Mapping[str, Callable[[Any, str, Any], Any]]
+) -> dict[str, Any]:
+    """The keys of ``readers`` present in ``node``, each read by its reader, in that order."""
+    return {
+        key: read(node, f"{section}.{key}", node[key])
+        for key, read in readers.items()
+        if key in node
+    }
+
+
+def _named(
+    reader: _Reader, doc: Mapping[str, Any], key: str, parse: Callable[[str, Any], _T]
+) -> list[_T]:
+    """``doc[key]``, a mapping of name -> item (``textures``, ``materials``), parsed in order."""
+    node = doc.get(key)
+    if node is None:
+        return []
+    if not isinstance(node, dict):
+        raise reader.error(doc, key, f"expected a mapping of name -> {key[:-1]}")
+    return [parse(str(k), v) for k, v in node.items()]
+
+
 def _parse_sections(reader: _Reader, doc: Mapping[str, Any], world_seed: int) -> dict[str, Any]:
     out: dict[str, Any] = {}
     if "physics" in doc:
         pm = reader.mapping(doc["physics"], "physics", _PHYSICS_KEYS)
-        kw: dict[str, Any] = {}
-        if "timestep" in pm:
-            kw["timestep"] = reader.number(pm, "physics.timestep", pm["timestep"])
-        if "gravity" in pm:
-            kw["gravity"] = reader.vec3(pm, "physics.gravity", pm["gravity"])
-        if "integrator" in pm:
-            kw["integrator"] = reader.string(pm, "physics.integrator", pm["integrator"])
+        kw = _fields(
+            pm,
+            "physics",
+            {"timestep": reader.number, "gravity": reader.vec3, "integrator": reader.string},
+        )
         out["physics"] = _call(reader, pm, "physics", lambda: Physics(**kw))
     if "headlight" in doc:
         hm = reader.mapping(doc["headlight"], "headlight", _HEADLIGHT_KEYS)
-        hk: dict[str, Any] = {}
-        if "active" in hm:
-            hk["active"] = reader.boolean(hm, "headlight.active", hm["active"])
-        for key in ("ambient", "diffuse", "specular"):
-            if key in hm:
-                hk[key] = reader.vec3(hm, f"headlight.{key}", hm[key])
+        hk = _fields(
+            hm,
+            "headlight",
+            {
+                "active": reader.boolean,
+                "ambient": reader.vec3,
+                "diffuse": reader.vec3,
+                "specular": reader.vec3,
+            },
+        )
         out["headlight"] = _call(reader, hm, "headlight", lambda: Headlight(**hk))
-    textures: list[Texture] = []
-    if doc.get("textures") is not None:
-        tm = doc["textures"]
-        if not isinstance(tm, dict):
-            raise reader.error(doc, "textures", "expected a mapping of name -> texture")
-        textures = [_parse_texture(reader, str(k), v, world_seed) for k, v in tm.items()]
-    materials: list[Material] = []
-    if doc.get("materials") is not None:
-        mm = doc["materials"]
-        if not isinstance(mm, dict):
-            raise reader.error(doc, "materials", "expected a mapping of name -> material")
-        materials = [_parse_material(reader, str(k), v) for k, v in mm.items()]
+    textures: list[Texture] = _named(
+        reader, doc, "textures", lambda k, v: _parse_texture(reader, k, v, world_seed)
+    )
+    materials: list[Material] = _named(
+        reader, doc, "materials", lambda k, v: _parse_material(reader, k, v)
+    )
     ground: Ground | None = Ground(material=DEFAULT_GROUND_MATERIAL)
     if "ground" in doc:
         if doc["ground"] is None or doc["ground"] is False:
             ground = None
         else:
             gm = reader.mapping(doc["ground"], "ground", _GROUND_KEYS)
-            gk: dict[str, Any] = {}
-            if "size" in gm:
-                gk["size"] = reader.vec2(gm, "ground.size", gm["size"])
-            if "z" in gm:
-                gk["z"] = reader.number(gm, "ground.z", gm["z"])
-            if "material" in gm:
-                gk["material"] = reader.string(gm, "ground.material", gm["material"])
-            if "rgba" in gm:
-                gk["rgba"] = reader.rgba(gm, "ground.rgba", gm["rgba"])
+            gk = _fields(
+                gm,
+                "ground",
+                {
+                    "size": reader.vec2,
+                    "z": reader.number,
+                    "material": reader.string,
+                    "rgba": reader.rgba,
+                },
+            )
             if "texture" in gm:
                 if "material" in gm:
                     raise reader.error(
@@ -540,8 +535,8 @@ def load_yaml_world(path: Path, *, seed: int | None = None) -> WorldDescription:
         WorldError: Unreadable file, malformed YAML (with line and column) or invalid content.
     """
     text = read_text(path, what="the world file", error=WorldError)
-    data = load_yaml(
-        text, source=str(path), what="the world file", loader=_LineLoader, error=WorldError
+    data = load_yaml_lines(
+        text, source=str(path), what="the world file", error=WorldError, string_keys=True
     )
     if data is None:
         msg = f"{path}: the world file is empty; it needs at least 'objects' or 'ground'"

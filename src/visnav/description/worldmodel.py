@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from visnav.description.errors import WorldError, WorldWarning
+from visnav.description.errors import WorldError
 from visnav.description.rigid import rpy_to_matrix
 
 if TYPE_CHECKING:
@@ -44,8 +44,6 @@ __all__ = [
     "Sphere",
     "Texture",
     "WorldDescription",
-    "WorldError",
-    "WorldWarning",
     "rpy_to_quat_wxyz",
 ]
 
@@ -394,7 +392,7 @@ class Physics:
 
 @dataclass(frozen=True, kw_only=True)
 class WorldDescription:
-    """A complete static world, ready for :func:`visnav.description.world.build_world_spec`.
+    """A complete static world, ready for :func:`visnav.sim.world_spec.build_world_spec`.
 
     Attributes:
         name: World name.

@@ -33,7 +33,6 @@ from visnav.launch.description import (
 from visnav.launch.errors import LaunchArgError, LaunchParseError, where
 from visnav.launch.substitutions import has_substitution, substitute
 from visnav.launch.yaml_scope import (
-    LineMap,
     Scope,
     arg_text,
     flatten_params,
@@ -44,6 +43,7 @@ from visnav.launch.yaml_scope import (
     typed_value,
 )
 from visnav.node_registry import UnknownNodeError, check_node_name
+from visnav.safe_yaml import LineMap
 from visnav.textfile import TextFileError, read_text
 from visnav.tf.static_tf import StaticTransformError, static_transform_params_from_args
 

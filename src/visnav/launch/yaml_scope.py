@@ -13,15 +13,12 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-import yaml
-
 from visnav.graph.names import InvalidNameError, validate_namespace
 from visnav.launch.errors import LaunchParseError
 from visnav.launch.substitutions import SubstitutionContext
-from visnav.safe_yaml import LimitedSafeLoader, YamlError, load_yaml
+from visnav.safe_yaml import YamlError, load_yaml, load_yaml_lines
 
 __all__ = [
-    "LineMap",
     "Scope",
     "arg_text",
     "flatten_params",
@@ -36,44 +33,16 @@ _TRUE = ("true", "1", "yes", "on")
 _FALSE = ("false", "0", "no", "off")
 
 
-class LineMap(dict[str, Any]):
-    """A YAML mapping that remembers its line."""
-
-    line: int | None = None
-
-
-class _LineLoader(LimitedSafeLoader):
-    """Safe loader (alias limits) whose mappings are :class:`LineMap` with a line; no dup keys."""
-
-
-def _construct_map(loader: _LineLoader, node: yaml.MappingNode) -> LineMap:
-    loader.flatten_mapping(node)
-    result = LineMap()
-    result.line = node.start_mark.line + 1
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if key in result:
-            mark = key_node.start_mark
-            msg = f"{mark.name}:{mark.line + 1}: key {key!r} appears twice in one mapping"
-            raise LaunchParseError(msg)
-        result[key] = loader.construct_object(value_node, deep=True)
-    return result
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
-
-
 def parse_yaml_text(text: str, source: str) -> Any:
-    """Parse YAML, keeping mapping lines; errors name the file and line.
+    """Parse a launch file: mappings are :class:`~visnav.safe_yaml.LineMap` with their line.
 
-    Loaded with visnav's alias limits (:mod:`visnav.safe_yaml`).
+    Loaded by :func:`visnav.safe_yaml.load_yaml_lines` (alias limits, merge keys, a key
+    written twice refused); errors name the file and line.
 
     Raises:
         LaunchParseError: the text is not valid YAML or breaks a limit.
     """
-    return load_yaml(
-        text, source=source, what="the launch file", loader=_LineLoader, error=LaunchParseError
-    )
+    return load_yaml_lines(text, source=source, what="the launch file", error=LaunchParseError)
 
 
 def parse_bool(value: Any, what: str, prefix: str = "") -> bool:

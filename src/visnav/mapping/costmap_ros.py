@@ -39,7 +39,7 @@ from typing import Any
 
 from visnav.graph.node import Node, Publisher
 from visnav.graph.param_dataclass import declare_params
-from visnav.graph.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+from visnav.graph.qos import qos_profile_latched, qos_profile_sensor_data
 from visnav.mapping.costmap_2d import costmap_to_occupancy_grid
 from visnav.mapping.costmap_layers import CostmapParams, layer_defaults, make_layer
 from visnav.mapping.errors import CostmapError
@@ -55,7 +55,8 @@ from visnav.tf.transforms import yaw_from_matrix, yaw_from_quaternion
 
 __all__ = ["MAP_QOS", "CostmapROS"]
 
-MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+MAP_QOS = qos_profile_latched
+"""map_server's ``map`` QoS (latched: depth 1, reliable, transient local)."""
 
 _NS = 1_000_000_000
 

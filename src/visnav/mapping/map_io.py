@@ -41,7 +41,7 @@ import numpy as np
 from visnav.mapping.errors import MappingError
 from visnav.safe_yaml import load_yaml_file
 from visnav.tf.errors import InvalidArgumentException
-from visnav.tf.transforms import yaw_from_quaternion
+from visnav.tf.transforms import quaternion_from_yaw, yaw_from_quaternion
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -123,7 +123,6 @@ class OccupancyMap:
             OccupancyGrid,
             Point,
             Pose,
-            Quaternion,
         )
 
         x, y, yaw = self.metadata.origin
@@ -136,7 +135,7 @@ class OccupancyMap:
             height=int(height),
             origin=Pose(
                 position=Point(x=x, y=y, z=0.0),
-                orientation=Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
+                orientation=quaternion_from_yaw(yaw),
             ),
         )
         return OccupancyGrid(

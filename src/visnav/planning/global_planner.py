@@ -42,9 +42,10 @@ from numpy.typing import NDArray
 
 from visnav.mapping.costmap_2d import NO_INFORMATION, Costmap2D
 from visnav.msgs.time import ns_to_time
-from visnav.msgs.types import Header, Path, Point, Pose, PoseStamped, Quaternion
+from visnav.msgs.types import Header, Path, Point, Pose, PoseStamped
 from visnav.planning._potential import gradient_path, grid_path, propagate
 from visnav.planning.errors import PlanningError
+from visnav.tf.transforms import quaternion_from_yaw
 
 __all__ = [
     "GlobalPlanner",
@@ -347,7 +348,7 @@ def path_to_msg(poses: NDArray[np.float64], frame_id: str, stamp_ns: int = 0) ->
     header = Header(stamp=stamp, frame_id=frame_id)
     out = []
     for x, y, yaw in np.asarray(poses, dtype=np.float64).reshape(-1, 3):
-        q = Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+        q = quaternion_from_yaw(yaw)
         out.append(
             PoseStamped(
                 header=Header(stamp=stamp, frame_id=frame_id),

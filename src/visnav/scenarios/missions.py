@@ -23,12 +23,13 @@ import numpy as np
 from visnav.description.world import load_world
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs.construct import make
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Header, Odometry, PoseStamped
 from visnav.scenarios.errors import ScenarioError
+from visnav.scenarios.observer_metrics import ENDED_STATUSES
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -45,7 +46,6 @@ __all__ = [
 
 GOAL_NODES = ("N1", "N2", "N3", "S1", "S2", "S3", "W", "E", "C1", "C2", "corr_nw", "corr_se")
 """Room centres and corridor corners of the office's free-space graph."""
-_ENDED = frozenset({2, 3, 4, 5})  # actionlib PREEMPTED, SUCCEEDED, ABORTED, REJECTED
 
 
 def goal_sequence(
@@ -135,7 +135,7 @@ class CarGoalSender(Node):
 
     def _on_status(self, msg: Any) -> None:
         for status in msg.status_list:
-            if int(status.status) in _ENDED:
+            if int(status.status) in ENDED_STATUSES:
                 self._ended.add(str(status.goal_id.id))
         # the next goal goes out at once, in the same step as the end of the last one
         if 0 < self._sent < len(self.goals) and len(self._ended) >= self._sent:
@@ -195,10 +195,11 @@ class DroneMission(Node):
             )
             raise ScenarioError(msg) from None
         self.goal = (goal[0], goal[1], p.takeoff_height)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        hold = self.create_publisher(PoseStamped, "command/pose", latched)
+        hold = self.create_publisher(PoseStamped, "command/pose", qos_profile_latched)
         hold.publish(pose_stamped(start[0], start[1], p.takeoff_height, 0, self._frame))
-        self._pub = self.create_publisher(PoseStamped, "/move_base_simple/goal", latched)
+        self._pub = self.create_publisher(
+            PoseStamped, "/move_base_simple/goal", qos_profile_latched
+        )
         self._timer = self.create_timer(0.005, self._tick)
 
     def _tick(self) -> None:

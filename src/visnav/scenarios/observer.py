@@ -46,13 +46,15 @@ import numpy as np
 
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import OccupancyGrid, Odometry, PoseStamped
 from visnav.msgs.types import Path as PathMsg
 from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.observer_metrics import (
+    ENDED_STATUSES,
+    SUCCEEDED_STATUS,
     ContactEvents,
     FloatArray,
     GoalRecord,
@@ -66,11 +68,9 @@ from visnav.tf.ros import TransformListener
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["ObserverNode", "ObserverParams", "parse_planner_status"]
+    from visnav.scenarios.observer_results import SlamTrajectories
 
-_ENDED = frozenset({2, 3, 4, 5})  # actionlib PREEMPTED, SUCCEEDED, ABORTED, REJECTED
-_SUCCEEDED = 3
-_LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+__all__ = ["ObserverNode", "ObserverParams", "parse_planner_status"]
 
 
 @dataclass(frozen=True)
@@ -167,7 +167,7 @@ class ObserverNode(Node):
             self.create_subscription(PoseStamped, p.slam_pose_topic, self._on_slam_pose, 10)
             self.create_subscription(PathMsg, p.slam_path_topic, self._on_slam_path, 1)
         if p.map_topic and p.scenario == "car":
-            self.create_subscription(OccupancyGrid, p.map_topic, self._on_map, _LATCHED)
+            self.create_subscription(OccupancyGrid, p.map_topic, self._on_map, qos_profile_latched)
         if p.localization_source:
             self.tf_buffer = Buffer()
             self.tf_listener = TransformListener(self.tf_buffer, self)
@@ -197,13 +197,17 @@ class ObserverNode(Node):
         stamp = time_to_ns(msg.header.stamp)
         for status in msg.status_list:
             index = _goal_index(str(status.goal_id.id))
-            if index is None or index >= len(self._goals) or int(status.status) not in _ENDED:
+            if (
+                index is None
+                or index >= len(self._goals)
+                or int(status.status) not in ENDED_STATUSES
+            ):
                 continue
             goal = self._goals[index]
             if goal.ended:
                 continue
             goal.ended = True
-            goal.succeeded = int(status.status) == _SUCCEEDED
+            goal.succeeded = int(status.status) == SUCCEEDED_STATUS
             goal.duration_s = (stamp - time_to_ns(status.goal_id.stamp)) / 1e9
             self._score_drive(goal)
         ended = sum(g.ended for g in self._goals)
@@ -320,15 +324,23 @@ class ObserverNode(Node):
         """True once the task is done (every goal ended; the drone reached its goal)."""
         return self._done_ns is not None
 
-    def results(self) -> dict[str, Any]:
-        """The task's summary keys."""
+    def results(self, slam: SlamTrajectories | None = None) -> dict[str, Any]:
+        """The task's summary keys.
+
+        Args:
+            slam: the SLAM trajectories if already computed
+                (:func:`~visnav.scenarios.observer_results.slam_trajectories`).
+        """
         from visnav.scenarios.observer_results import car_results, drone_results  # noqa: PLC0415
 
-        return car_results(self) if self.params.scenario == "car" else drone_results(self)
+        return car_results(self, slam) if self.params.scenario == "car" else drone_results(self)
 
     def finish(self) -> dict[str, Any]:
         """Compute the summary and write it (and the map / SLAM files) to ``output_dir``."""
-        from visnav.scenarios.observer_results import write_outputs  # noqa: PLC0415
+        from visnav.scenarios.observer_results import (  # noqa: PLC0415
+            slam_trajectories,
+            write_outputs,
+        )
 
         now = self.get_clock().now_ns()
         summary: dict[str, Any] = {
@@ -336,13 +348,14 @@ class ObserverNode(Node):
             "seed": self.params.seed,
             "sim_duration_s": round(now / 1e9, 6),
         }
-        summary.update(self.results())
+        slam = slam_trajectories(self) if self.params.slam else None  # once: summary + files
+        summary.update(self.results(slam))
         self.summary = summary
         self._written = True
         if self.params.output_dir:
             out = Path(self.params.output_dir)
             out.mkdir(parents=True, exist_ok=True)
-            write_outputs(self, out)
+            write_outputs(self, out, slam)
             tmp = out / "summary.json.tmp"  # whole or absent, even if this process is killed
             tmp.write_text(json.dumps(summary, indent=2) + "\n")
             tmp.replace(out / "summary.json")

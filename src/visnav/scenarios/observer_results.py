@@ -14,13 +14,28 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from visnav.scenarios.observer_metrics import path_length, pose_error, yaw_of_matrix
+from visnav.scenarios.observer_metrics import (
+    interpolate_poses,
+    path_length,
+    pose_error,
+    slam_metrics,
+)
+from visnav.tf.transforms import yaw_from_matrix
 
 if TYPE_CHECKING:
     from visnav.scenarios.observer import ObserverNode
     from visnav.slam.trajectory import Trajectory
 
-__all__ = ["car_results", "drone_results", "slam_trajectories", "write_outputs"]
+__all__ = [
+    "SlamTrajectories",
+    "car_results",
+    "drone_results",
+    "slam_trajectories",
+    "write_outputs",
+]
+
+SlamTrajectories = tuple["Trajectory", "Trajectory", int]
+"""``(estimate, ground truth at its stamps, poses tracked)``: :func:`slam_trajectories`."""
 
 
 def _spawn(node: ObserverNode) -> tuple[float, float, float]:
@@ -41,9 +56,9 @@ def _odometry(node: ObserverNode) -> dict[str, Any]:
     odom = node._odom_pose
     c, s = math.cos(yaw0), math.sin(yaw0)
     ox, oy = x0 + c * odom[0, 3] - s * odom[1, 3], y0 + s * odom[0, 3] + c * odom[1, 3]
-    oyaw = yaw0 + yaw_of_matrix(odom)
+    oyaw = yaw0 + yaw_from_matrix(odom)
     tx, ty, _ = node._truth[-1]
-    tyaw = yaw_of_matrix(node._truth_poses[-1])
+    tyaw = yaw_from_matrix(node._truth_poses[-1])
     out["drift_m"] = round(math.hypot(ox - tx, oy - ty), 4)
     out["heading_drift_deg"] = round(math.degrees(math.remainder(oyaw - tyaw, 2 * math.pi)), 3)
     return out
@@ -58,8 +73,14 @@ def _odometry_drift_m(node: ObserverNode) -> float | None:
     return round(pose_error(estimate, truth1)[0], 4)
 
 
-def car_results(node: ObserverNode) -> dict[str, Any]:
-    """The car's summary keys (goals, collisions, path, odometry, localization, SLAM)."""
+def car_results(node: ObserverNode, slam: SlamTrajectories | None = None) -> dict[str, Any]:
+    """The car's summary keys (goals, collisions, path, odometry, localization, SLAM).
+
+    Args:
+        node: the observer.
+        slam: :func:`slam_trajectories` of ``node`` if already computed (else computed here
+            when the node scores SLAM).
+    """
     goals = node._goals[: node.params.goals]
     ended = [g for g in goals if g.ended]
     reached = [g for g in ended if g.reached]
@@ -79,7 +100,7 @@ def car_results(node: ObserverNode) -> dict[str, Any]:
     if node.params.localization_source:
         out["localization"] = node._loc.summary(node.params.localization_source)
     if node.params.slam:
-        out["slam"] = _slam(node)
+        out["slam"] = _slam(node, slam if slam is not None else slam_trajectories(node))
     return out
 
 
@@ -115,9 +136,8 @@ def drone_results(node: ObserverNode) -> dict[str, Any]:
     }
 
 
-def slam_trajectories(node: ObserverNode) -> tuple[Trajectory, Trajectory, int]:
+def slam_trajectories(node: ObserverNode) -> SlamTrajectories:
     """``(estimate, ground truth at its stamps, poses tracked)`` from the SLAM topics."""
-    from visnav.scenarios.car_slam import interpolate_poses  # noqa: PLC0415
     from visnav.slam.trajectory import Trajectory  # noqa: PLC0415
 
     last = node._slam_path[-1][0] if node._slam_path else -1
@@ -134,10 +154,8 @@ def slam_trajectories(node: ObserverNode) -> tuple[Trajectory, Trajectory, int]:
     return est.subset(idx), Trajectory.from_matrices(est.stamps[idx], gt), len(poses)
 
 
-def _slam(node: ObserverNode) -> dict[str, Any]:
-    from visnav.scenarios.car_slam import slam_metrics  # noqa: PLC0415
-
-    est, gt, tracked = slam_trajectories(node)
+def _slam(node: ObserverNode, trajectories: SlamTrajectories) -> dict[str, Any]:
+    est, gt, tracked = trajectories
     out: dict[str, Any] = slam_metrics(est, gt)
     out.update({"tracked": tracked, "evaluated": len(est)})
     for key in _SLAM_COUNTERS:
@@ -168,8 +186,17 @@ _SLAM_COUNTERS = (
 """The SLAM node's ``/diagnostics`` counters copied into the ``slam`` summary key."""
 
 
-def write_outputs(node: ObserverNode, out_dir: Path) -> list[Path]:
-    """Write the mapped grid and the SLAM trajectories (whatever the run produced)."""
+def write_outputs(
+    node: ObserverNode, out_dir: Path, slam: SlamTrajectories | None = None
+) -> list[Path]:
+    """Write the mapped grid and the SLAM trajectories (whatever the run produced).
+
+    Args:
+        node: the observer.
+        out_dir: the run directory.
+        slam: :func:`slam_trajectories` of ``node`` if already computed (else computed here
+            when the node scores SLAM).
+    """
     written: list[Path] = []
     if node._map is not None:
         from visnav.mapping.map_io import save_map  # noqa: PLC0415
@@ -178,7 +205,7 @@ def write_outputs(node: ObserverNode, out_dir: Path) -> list[Path]:
     if node.params.slam:
         from visnav.slam.trajectory import write_tum  # noqa: PLC0415
 
-        est, gt, _ = slam_trajectories(node)
+        est, gt, _ = slam if slam is not None else slam_trajectories(node)
         written.append(
             write_tum(
                 out_dir / "slam_trajectory.tum",

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 from visnav.description.urdf import parse_urdf
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import QoSProfile, qos_profile_latched
 from visnav.msgs.types import JointState, String
 from visnav.tf.errors import TransformException
 from visnav.tf.robot_state import RobotStateError, RobotStateModel
@@ -42,7 +42,6 @@ __all__ = [
 ]
 
 _DEFAULT_QOS = QoSProfile(depth=10)
-_LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class RobotStatePublisherNodeError(TransformException, ValueError):
@@ -88,7 +87,7 @@ class RobotStatePublisher:
     ) -> None:
         self.node = node
         self.model = model
-        node.create_publisher(String, "robot_description", _LATCHED_QOS).publish(
+        node.create_publisher(String, "robot_description", qos_profile_latched).publish(
             String(data=description)
         )
         self._static = StaticTransformBroadcaster(node)

@@ -15,7 +15,7 @@ from typing import Any
 from visnav.graph.context import Context
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.node import Node
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import DurabilityPolicy, QoSProfile, qos_profile_tf_static
 from visnav.msgs.types import TFMessage, TransformStamped
 from visnav.tf.buffer import Buffer
 
@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 DYNAMIC_QOS = QoSProfile(depth=100)
-STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATIC_QOS = qos_profile_tf_static
 """tf2_ros's StaticBroadcasterQoS: each broadcaster keeps its one (whole-set) message."""
 STATIC_LISTENER_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """tf2_ros's StaticListenerQoS: room for the latched messages of many broadcasters."""

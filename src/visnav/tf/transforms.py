@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from visnav.description.rigid import rpy_to_matrix
 from visnav.msgs.types import Point, Pose, Quaternion, Transform, TransformStamped, Vector3
 from visnav.tf import _scalar
 from visnav.tf.errors import InvalidArgumentException
@@ -38,6 +39,7 @@ __all__ = [
     "matrix_to_translation_quaternion",
     "pose_to_matrix",
     "quaternion_from_euler",
+    "quaternion_from_yaw",
     "quaternion_inverse",
     "quaternion_multiply",
     "quaternion_normalize",
@@ -246,16 +248,24 @@ def matrix_from_euler(roll: float, pitch: float, yaw: float) -> FloatArray:
     if not (math.isfinite(r) and math.isfinite(p) and math.isfinite(y)):
         msg = f"roll, pitch, yaw = ({roll}, {pitch}, {yaw}): expected finite angles in radians"
         raise InvalidArgumentException(msg)
-    cr, sr = math.cos(r), math.sin(r)
-    cp, sp = math.cos(p), math.sin(p)
-    cy, sy = math.cos(y), math.sin(y)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
+    return rpy_to_matrix((r, p, y))
+
+
+def quaternion_from_yaw(yaw: float) -> Quaternion:
+    """Return the ``geometry_msgs/Quaternion`` of a heading: a rotation of ``yaw`` about z.
+
+    ``(0, 0, sin(yaw / 2), cos(yaw / 2))``: nav2_util's ``orientationAroundZAxis``, the
+    orientation of a planar pose (a goal, a map origin, a 2D pose estimate).
+    :func:`yaw_from_quaternion` is its inverse (up to a multiple of 2 pi).
+
+    Raises:
+        InvalidArgumentException: ``yaw`` is not a finite number.
+    """
+    half = 0.5 * float(yaw)
+    if not math.isfinite(half):
+        msg = f"yaw is {yaw}: expected a finite angle in radians"
+        raise InvalidArgumentException(msg)
+    return Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
 
 
 def _xyzw(q: Quaternion | ArrayLike) -> tuple[float, float, float, float]:

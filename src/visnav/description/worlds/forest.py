@@ -109,7 +109,7 @@ def generate(*, seed: int | None = None, params: dict[str, Any] | None = None) -
         params: Parameters (see the module docstring).
 
     Returns:
-        A world document for :func:`visnav.description.world.world_from_dict`.
+        A world document for :func:`visnav.description.world_yaml.world_from_dict`.
 
     Raises:
         ValueError: A parameter is invalid, or the obstacles do not fit.

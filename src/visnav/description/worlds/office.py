@@ -518,7 +518,7 @@ def generate(*, seed: int | None = None, params: dict[str, Any] | None = None) -
         params: No parameters are accepted yet (an empty mapping).
 
     Returns:
-        A world document for :func:`visnav.description.world.world_from_dict`.
+        A world document for :func:`visnav.description.world_yaml.world_from_dict`.
 
     Raises:
         ValueError: An unknown parameter was given.

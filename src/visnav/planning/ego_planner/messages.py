@@ -21,7 +21,6 @@ RotorS controllers take on ``command/trajectory``):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -34,10 +33,10 @@ from rosbags.typesys.stores.ros2_humble import (
 )
 
 from visnav.msgs.time import duration_to_ns, ns_to_duration, ns_to_time, time_to_ns
-from visnav.msgs.types import Header, Quaternion, Transform, Twist, Vector3
+from visnav.msgs.types import Header, Transform, Twist, Vector3
 from visnav.planning.errors import PlanningError
 from visnav.tf.errors import InvalidArgumentException
-from visnav.tf.transforms import yaw_from_quaternion
+from visnav.tf.transforms import quaternion_from_yaw, yaw_from_quaternion
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -81,12 +80,11 @@ def _point(
     yaw: float = 0.0,
     yaw_dot: float = 0.0,
 ) -> MultiDOFJointTrajectoryPoint:
-    half = 0.5 * yaw
     return MultiDOFJointTrajectoryPoint(
         transforms=[
             Transform(
                 translation=_vec(pos),
-                rotation=Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half)),
+                rotation=quaternion_from_yaw(yaw),
             )
         ],
         velocities=[Twist(linear=_vec(vel), angular=Vector3(x=0.0, y=0.0, z=float(yaw_dot)))],
