@@ -13,6 +13,11 @@ payloads): the figure is recorded / sent per topic (target 1.00, 0 drops, for no
 zstd), and the drops the recorder reported (``bag record`` prints them, ``bag info`` reads
 them from the bag). Repeated REPEATS times; medians are printed.
 
+``python bench/bench_record.py --callback`` measures instead the recorder callback's data path
+per message in one process (thread CPU time, so other load matters little): a raw subscription's
+``SerializedMessage.to_bytes()`` (what the recorder does) against deserializing the remote CDR
+and serializing it again (what it did before), for a 640x480 rgb8 Image and a Clock.
+
 With ``BENCH_BEFORE_SRC=DIR`` (a ``src`` tree of an older visnav, e.g. from
 ``git archive <commit> src | tar -x -C /tmp/old``), each configuration is also recorded by
 that version's ``bag record`` in the same run (interleaved), as the before/after reference.
@@ -55,7 +60,7 @@ def publish(seconds: float) -> None:
     pixels = [rng.integers(0, 256, 640 * 480 * 3, dtype=np.uint8) for _ in range(4)]
     with Context() as ctx:
         node = Node("load", context=ctx)
-        pubs = {
+        pubs: dict[str, Any] = {
             "/image": node.create_publisher(Image, "/image", 10),
             "/fast": node.create_publisher(String, "/fast", 10),
             "/clock": node.create_publisher(clock_cls, "/clock", 10),
@@ -189,8 +194,64 @@ def _print(label: str, runs: list[dict[str, Any]]) -> None:
     )
 
 
+def callback_cost(repeats: int = 7, n: int = 200) -> None:
+    """Per-message CPU cost of the recorder callback's data path: raw vs decode + encode."""
+    import zenoh
+
+    from visnav.graph.subscription import SerializedMessage
+    from visnav.msgs import Header, Image, make, ns_to_time, serialize
+    from visnav.msgs.serde import CdrSerializer, deserialize, get_message_class
+
+    clock_cls = get_message_class("rosgraph_msgs/msg/Clock")
+    pixels = np.random.default_rng(0).integers(0, 256, 640 * 480 * 3, dtype=np.uint8)
+    image = make(
+        Image,
+        header=Header(stamp=ns_to_time(1), frame_id="camera"),
+        height=480,
+        width=640,
+        encoding="rgb8",
+        step=640 * 3,
+        data=pixels,
+    )
+    samples = {
+        "sensor_msgs/msg/Image": bytes(serialize(image)),
+        "rosgraph_msgs/msg/Clock": bytes(serialize(make(clock_cls, clock=ns_to_time(7)))),
+    }
+    print(f"recorder callback data path, per message (thread CPU time, median of {repeats})")
+    for type_name, cdr in samples.items():
+        enc = CdrSerializer(type_name)
+
+        payload = zenoh.ZBytes(cdr)  # what a remote sample hands the subscription
+
+        def before(payload: Any = payload, type_name: str = type_name, enc: Any = enc) -> bytes:
+            msg = deserialize(memoryview(payload.to_bytes()), type_name)  # as _run_remote
+            return bytes(enc.serialize(msg))
+
+        def now(payload: Any = payload, type_name: str = type_name) -> bytes:
+            return SerializedMessage(payload, type_name).to_bytes()
+
+        assert before() == now() == cdr
+        figures = {}
+        for label, fn in (("raw", now), ("decode+encode", before)):
+            runs = []
+            for _ in range(repeats):
+                t0 = time.thread_time()
+                for _ in range(n):
+                    fn()
+                runs.append((time.thread_time() - t0) / n * 1e6)
+            figures[label] = statistics.median(runs)
+        ratio = figures["raw"] / figures["decode+encode"]
+        print(
+            f"  {type_name} ({len(cdr)} B): raw {figures['raw']:.1f} us, decode+encode "
+            f"(reference) {figures['decode+encode']:.1f} us, ratio {ratio:.2f}",
+            flush=True,
+        )
+
+
 if __name__ == "__main__":
-    if len(sys.argv) > 2 and sys.argv[1] == "--publish":
+    if len(sys.argv) > 1 and sys.argv[1] == "--callback":
+        callback_cost()
+    elif len(sys.argv) > 2 and sys.argv[1] == "--publish":
         publish(float(sys.argv[2]))
     else:
         main(float(sys.argv[1]) if len(sys.argv) > 1 else 8.0)

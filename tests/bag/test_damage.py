@@ -223,6 +223,63 @@ def test_convert_corrupt_payload_is_one_line_and_leaves_no_output(
     assert not out.exists()
 
 
+def test_convert_ros1_corrupt_payload_to_mcap_is_one_line_and_leaves_no_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ROS 1 message whose bytes do not decode (string length 1e6) stops a CDR conversion."""
+    src = _bag(tmp_path / "src.bag", "ros1", n=20)
+    data = bytearray(src.read_bytes())
+    at = data.index(struct.pack("<I", 2) + b"m7")
+    data[at : at + 4] = struct.pack("<I", 1_000_000)
+    src.write_bytes(bytes(data))
+    out = tmp_path / "out"
+    assert main(["bag", "convert", str(src), str(out), "--format", "mcap"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(f"error: bag '{src}': a message on '/chatter' at t=1000007000 ns")
+    assert "not valid ROS 1 std_msgs/msg/String" in err[0]
+    assert "--topics" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["src.bag"]  # no partial output
+    # ROS 1 -> ROS 1 copies the bytes as they are (rosbag does not decode them either)
+    assert main(["bag", "convert", str(src), str(tmp_path / "copy.bag"), "--format", "ros1"]) == 0
+
+
+def test_play_skips_and_counts_a_message_that_does_not_decode(
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+    capsys: pytest.CaptureFixture[str],
+    domain: int,  # the CLI's playback goes into a private VISNAV_DOMAIN
+) -> None:
+    from visnav.bag import BagPlayer
+    from visnav.graph import Context, Node
+
+    src = _bag(tmp_path / "src.bag", "ros1", n=20)
+    data = bytearray(src.read_bytes())
+    for i in (7, 9):
+        at = data.index(struct.pack("<I", 2) + f"m{i}".encode())
+        data[at : at + 4] = struct.pack("<I", 1_000_000)
+    src.write_bytes(bytes(data))
+    got: list[str] = []
+    with Context(transport="local") as ctx, caplog.at_level(logging.WARNING, logger="visnav.bag"):
+        Node("sub", context=ctx).create_subscription(
+            String, "/chatter", lambda m: got.append(m.data), 100
+        )
+        player = BagPlayer(ctx, src, rate=100.0)
+        player.start()
+        assert ctx.spin_until(lambda: player.done, 10.0)
+        ctx.spin_some()
+        player.wait()
+    assert got == [f"m{i}" for i in range(20) if i not in (7, 9)]
+    assert player.stats.undecodable == {"/chatter": 2}
+    said = [r.getMessage() for r in caplog.records if "skipping it" in r.getMessage()]
+    assert len(said) == 1  # once per topic
+    assert "'/chatter' at t=1000007000" in said[0]
+    # the CLI plays on and says how many it skipped
+    assert main(["bag", "play", str(src), "-r", "100"]) == 0
+    err = capsys.readouterr().err
+    assert "skipped 2 message(s) on '/chatter' that do not decode" in err
+
+
 def test_convert_appears_only_when_complete(tmp_path: Path) -> None:
     """The output path exists only after success (a temporary name is used meanwhile)."""
     src = _bag(tmp_path / "src", "mcap", n=30)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import statistics
 from pathlib import Path
 from typing import Any
 
@@ -10,7 +9,8 @@ import pytest
 
 from visnav.bag import BagError, BagPlayer, BagWriter, TopicNotInBagError
 from visnav.bag.qos import latched_qos
-from visnav.graph import Context, DurabilityPolicy, MessageInfo, Node, QoSProfile
+from visnav.graph import Context, MessageInfo, Node
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import Clock, String, serialize, time_to_ns
 
 MS = 1_000_000
@@ -55,12 +55,17 @@ def test_play_keeps_recorded_timing(local_ctx: Context, timed_bag: Path, rate: f
     player = BagPlayer(local_ctx, timed_bag, rate=rate)
     _play(local_ctx, player)
     assert [d for _, d in got] == [str(i) for i in range(len(OFFSETS_MS))]
+    # ms after the first /a message minus the recorded offset / rate: never early (the player
+    # waits for each message's time), and never late by half the bag: a player that ignored the
+    # rate or did not wait would be 150 ms off. How close it keeps the timing on a quiet machine
+    # is measured in bench/bench_bag.py (a loaded machine adds tens of ms of scheduling jitter).
     errors = [
-        abs((t - got[0][0]) - off * MS / rate) / MS
+        ((t - got[0][0]) - off * MS / rate) / MS
         for (t, _), off in zip(got, OFFSETS_MS, strict=True)
     ]
-    assert statistics.median(errors) < 2.0, errors
-    assert max(errors) < 15.0, errors
+    first_late_ms = player.stats.lateness_ns[0] / MS  # /a "0" is the bag's first message
+    assert min(errors) >= -first_late_ms - 0.5, (errors, first_late_ms)
+    assert max(errors) < 100.0, errors
     assert player.stats.published == {"/a": 6, "/b": 1, "/latched": 1}
 
 
@@ -118,7 +123,7 @@ def test_play_latched_topic_reaches_late_subscriber(local_ctx: Context, timed_ba
         assert local_ctx.spin_until(lambda: player.stats.published.get("/latched", 0) >= 1, 3.0)
         node = Node("late", context=local_ctx)
         got: list[str] = []
-        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        qos = qos_profile_latched
         node.create_subscription(String, "/latched", lambda m: got.append(m.data), qos)
         assert local_ctx.spin_until(lambda: got == ["map"], 1.0)
     finally:

@@ -9,7 +9,8 @@ from typing import Any
 import pytest
 
 from visnav.bag import BagReader, BagRecorder, bag_info, read_bag
-from visnav.graph import Context, DurabilityPolicy, Node, QoSProfile, ReliabilityPolicy
+from visnav.graph import Context, Node, QoSProfile, ReliabilityPolicy
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import Clock, String, ns_to_time
 
 TOPICS = ["/image", "/camera_info", "/tf", "/chatter"]
@@ -151,9 +152,7 @@ def test_record_all_discovers_topics_that_appear_later(tmp_path: Path, local_ctx
 
 def test_record_stores_offered_qos_and_latched_history(tmp_path: Path, local_ctx: Context) -> None:
     node = Node("talker", context=local_ctx)
-    latched = node.create_publisher(
-        String, "/latched", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    )
+    latched = node.create_publisher(String, "/latched", qos_profile_latched)
     sensor = node.create_publisher(
         String, "/sensor", QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
     )

@@ -35,4 +35,4 @@ def test_repeated_bad_images_are_counted_and_logged_once_per_period(
     assert node.dropped == 3
     errors = [r.getMessage() for r in caplog.records if "dropped a message" in r.getMessage()]
     assert len(errors) == 1  # the next two fall within the 5 s throttle
-    assert "dropped a message (1 so far)" in errors[0]
+    assert "dropped a message on /cam/image_raw + /cam/camera_info (1 so far)" in errors[0]

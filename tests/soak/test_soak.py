@@ -1,6 +1,8 @@
 """Issue 13's soak: sim + recorder + a viewer feed + one deliberately slow subscriber.
 
-Runs ``VISNAV_SOAK_S`` seconds (default 600) in a private domain, every part a real process:
+Runs ``VISNAV_SOAK_S`` seconds (default 120: a check that it still holds; the acceptance
+figures in BENCHMARKS.md are from ``VISNAV_SOAK_S=600``, ten minutes) in a private domain,
+every part a real process:
 ``visnav sim`` (car in the office, RGB 10 Hz, depth 5 Hz, real time), ``visnav bag record``
 of the small topics, a viewer-like subscriber and a slow one (``subscriber.py``). Checks:
 
@@ -29,7 +31,7 @@ from typing import IO, Any
 import pytest
 
 HERE = Path(__file__).parent
-SECONDS = float(os.environ.get("VISNAV_SOAK_S", "600"))
+SECONDS = float(os.environ.get("VISNAV_SOAK_S", "120"))
 RSS_KEY = "rss_mib (warm-up, end, peak)"
 RECORDED = ["/clock", "/tf", "/odom", "/joint_states", "/ground_truth/odom"]
 

@@ -7,6 +7,12 @@ recorded publishers offered (transient local only if all of them were: ``/tf_sta
 stays latched). With ``clock_hz`` the player publishes ``/clock`` (bag time) at that rate,
 so nodes with ``use_sim_time`` follow the bag.
 
+A message whose bytes do not decode as its type (a damaged payload in a bag whose index and
+chunks are intact) is skipped, logged once per topic and counted
+(:attr:`PlayStats.undecodable`); playback goes on. ``ros2 bag play`` publishes the
+serialized bytes without decoding them and leaves the failure to each subscriber; visnav
+decodes before publishing (in-process subscribers get message objects), so it skips instead.
+
 Playback runs in the calling thread (:meth:`BagPlayer.play`) or a background thread
 (:meth:`BagPlayer.start`); publishing is thread-safe, and subscribers in the same context
 are served by whoever spins it.
@@ -15,13 +21,14 @@ are served by whoever spins it.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import threading
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from visnav.bag.errors import BagError
+from visnav.bag.errors import BagError, CorruptBagError
 from visnav.bag.qos import playback_qos
 from visnav.bag.reader import BagReader
 from visnav.graph.context import Context
@@ -33,6 +40,8 @@ from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Clock as ClockMsg
 
 __all__ = ["BagPlayer", "PlayStats", "parse_remaps"]
+
+_LOG = logging.getLogger("visnav.bag")
 
 _CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -71,6 +80,7 @@ class PlayStats:
         skipped_topics: topics not played (type unknown to visnav), with the reason.
         clock_messages: ``/clock`` messages published.
         loops: passes over the bag completed.
+        undecodable: per topic, messages skipped because their bytes do not decode.
     """
 
     published: dict[str, int] = dataclasses.field(default_factory=dict)
@@ -78,6 +88,7 @@ class PlayStats:
     skipped_topics: dict[str, str] = dataclasses.field(default_factory=dict)
     clock_messages: int = 0
     loops: int = 0
+    undecodable: dict[str, int] = dataclasses.field(default_factory=dict)
 
     @property
     def message_count(self) -> int:
@@ -265,7 +276,14 @@ class BagPlayer:
                     return False
 
         for raw in self._reader.raw_messages(list(pubs), start_ns=t0):
-            msg = self._reader.decode(raw)  # read and decode ahead of the message's time
+            try:
+                msg = self._reader.decode(raw)  # read and decode ahead of the message's time
+            except CorruptBagError as exc:
+                skipped = stats.undecodable.get(raw.topic, 0) + 1
+                stats.undecodable[raw.topic] = skipped
+                if skipped == 1:
+                    _LOG.warning("%s; skipping it (and counting any more on that topic)", exc)
+                continue
             if not w0:
                 # Start the clock once the first message is in hand, so opening the bag and
                 # reading its first chunk does not delay the first message against the rest.

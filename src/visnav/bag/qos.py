@@ -20,7 +20,13 @@ from rosbags.interfaces import (
 )
 
 from visnav.graph.graph_cache import EndpointInfo
-from visnav.graph.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from visnav.graph.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_latched,
+)
 
 __all__ = ["endpoint_qos", "latched_qos", "playback_qos", "qos_from_profile", "qos_to_yaml"]
 
@@ -60,7 +66,7 @@ def endpoint_qos(endpoint: EndpointInfo) -> Qos:
 
 def latched_qos() -> Qos:
     """The profile a latched ROS 1 topic maps to (transient local, depth 1)."""
-    return qos_from_profile(QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    return qos_from_profile(qos_profile_latched)
 
 
 def qos_to_yaml(profiles: Sequence[Qos]) -> str:

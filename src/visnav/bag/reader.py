@@ -501,9 +501,24 @@ class BagReader:
             raise CorruptBagError(msg) from exc
 
     def to_cdr(self, raw: RawMessage) -> bytes | memoryview | None:
-        """Return the CDR of a raw message, or None for a ROS 1 type visnav does not know."""
+        """Return the CDR of a raw message, or None for a ROS 1 type visnav does not know.
+
+        Raises:
+            CorruptBagError: ROS 1 bytes that do not decode as the topic's type.
+        """
         conv = self._topics[raw.topic].to_cdr
-        return None if conv is None else conv(raw.data)
+        if conv is None:
+            return None
+        try:
+            return conv(raw.data)
+        except (ValueError, SerdeError, IndexError, KeyError, TypeError, struct.error) as exc:
+            msg = (
+                f"bag '{self.path}': a message on '{raw.topic}' at t={raw.t_ns} ns "
+                f"({len(raw.data)} bytes) is not valid ROS 1 {raw.type_name} "
+                f"({type(exc).__name__}: {exc}), so it cannot be converted to CDR; leave the "
+                "topic out (--topics) or keep the ROS 1 format"
+            )
+            raise CorruptBagError(msg) from exc
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:

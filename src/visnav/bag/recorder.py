@@ -6,7 +6,9 @@ It subscribes to the chosen topics (or every topic with ``all``) as soon as a pu
 announces them, with a QoS compatible with every publisher, and stores the profiles the
 publishers offered.
 
-No silent loss: a callback only serializes the message and hands it to a writer thread
+No silent loss: the subscriptions are raw (``raw=True``: a message from another process
+is never deserialized, its CDR bytes are copied out of the transport once, as ``ros2 bag
+record`` takes serialized messages) and a callback only hands the bytes to a writer thread
 (:mod:`visnav.bag.write_queue`), which compresses and writes, so the executor never waits
 for bz2 or the disk. The subscription queues are deeper than the publishers' (keep-last
 1000, 100 for images and clouds; ``rosbag record`` subscribes with 100) so that a busy
@@ -46,7 +48,8 @@ from visnav.graph.message_info import MessageInfo
 from visnav.graph.names import is_hidden_name
 from visnav.graph.node import Node, Subscription, Timer
 from visnav.graph.qos import HistoryPolicy
-from visnav.msgs.serde import CdrSerializer, get_message_class
+from visnav.graph.subscription import SerializedMessage
+from visnav.msgs.serde import get_message_class
 
 __all__ = ["BagRecorder", "RecordedTopic", "compile_exclude"]
 
@@ -370,13 +373,13 @@ class BagRecorder:
         self._handles[topic] = handle
         rec = RecordedTopic(topic, type_name, qos=qos.short())
         self.topics[topic] = rec
-        callback = self._callback(rec, handle, CdrSerializer(type_name))
-        self._subs.append(node.create_subscription(cls, topic, callback, qos))
+        callback = self._callback(rec, handle)
+        self._subs.append(node.create_subscription(cls, topic, callback, qos, raw=True))
         node.get_logger().info(f"recording '{topic}' ({type_name}, {qos.short()})")
 
     def _callback(
-        self, rec: RecordedTopic, handle: int, cdr: CdrSerializer
-    ) -> Callable[[Any, MessageInfo | None], None]:
+        self, rec: RecordedTopic, handle: int
+    ) -> Callable[[SerializedMessage, MessageInfo | None], None]:
         queue, node, writer = self._queue, self._node, self._writer
         if queue is None or node is None or writer is None:  # pragma: no cover - start() sets them
             msg = "the recorder is not started"
@@ -385,7 +388,7 @@ class BagRecorder:
         sim = self.use_sim_time
         max_time = writer.max_time_ns
 
-        def on_message(msg: Any, info: MessageInfo | None) -> None:
+        def on_message(msg: SerializedMessage, info: MessageInfo | None) -> None:
             if self._writer is None:
                 return
             if sim:
@@ -397,7 +400,7 @@ class BagRecorder:
             if not 0 <= t < max_time:  # cannot be stored: count it, do not stop the writer
                 queue.dropped[handle] = queue.dropped.get(handle, 0) + 1
                 return
-            if queue.put(handle, t, bytes(cdr.serialize(msg)), pub if pub >= 0 else t):
+            if queue.put(handle, t, msg.to_bytes(), pub if pub >= 0 else t):
                 rec.count += 1
 
         return on_message

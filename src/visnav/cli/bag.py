@@ -228,6 +228,8 @@ def cmd_play(args: argparse.Namespace) -> int:
     stats = player.stats
     for topic, reason in stats.skipped_topics.items():
         print(f"warning: not played '{topic}': {reason}", file=sys.stderr)
+    for topic, n in stats.undecodable.items():
+        print(f"warning: skipped {n} message(s) on '{topic}' that do not decode", file=sys.stderr)
     print(f"Published {stats.message_count} messages on {len(stats.published)} topics", flush=True)
     return 0
 

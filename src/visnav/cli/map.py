@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from visnav.cli._common import cli_node
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import qos_profile_latched
 from visnav.mapping.map_io import MapFileError, load_map, save_map
 from visnav.msgs.types import OccupancyGrid
 from visnav.outpaths import check_output_file
@@ -59,8 +59,7 @@ def cmd_save(args: argparse.Namespace) -> int:
         check_output_file(base.with_name(base.name + suffix), what=f"the map {suffix[1:]}")
     received: list[OccupancyGrid] = []
     with cli_node(args) as node:
-        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        node.create_subscription(OccupancyGrid, args.topic, received.append, qos)
+        node.create_subscription(OccupancyGrid, args.topic, received.append, qos_profile_latched)
         print(f"Waiting for the map on {args.topic}", flush=True)
         end = None if args.timeout is None else time.monotonic() + args.timeout
         while not received:

@@ -115,12 +115,17 @@ def cmd_slam(args: argparse.Namespace) -> int:
 
 def _intrinsics_for_folder(args: argparse.Namespace) -> CameraIntrinsics:
     """Intrinsics from --intrinsics, with the image size read from the first colour image."""
+    import logging
+
     import cv2
 
     from visnav.slam.errors import SlamInputError
     from visnav.slam.tum import TumSequence
 
-    seq = TumSequence(args.tum)
+    # the run reads the folder again and logs its warnings then: say them once
+    quiet = logging.Logger("visnav.cli.slam.image_size")
+    quiet.addHandler(logging.NullHandler())
+    seq = TumSequence(args.tum, logger=quiet)
     first = cv2.imread(str(seq.frames[0].rgb_path), cv2.IMREAD_UNCHANGED)
     if first is None:
         text = f"cannot read {seq.frames[0].rgb_path} to get the image size"

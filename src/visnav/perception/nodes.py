@@ -60,10 +60,11 @@ class _PerceptionNode(Node):
         super().__init__(name, **node_kwargs)
         self.dropped = 0
 
-    def _fail(self, exc: VisnavError) -> None:
+    def _fail(self, exc: VisnavError, *inputs: str) -> None:
         self.dropped += 1
+        names = " + ".join(self.resolve_topic_name(t) for t in inputs)
         self.get_logger().error(
-            f"dropped a message ({self.dropped} so far): {exc}",
+            f"dropped a message on {names} ({self.dropped} so far): {exc}",
             throttle_duration_sec=_DROP_LOG_PERIOD_S,
         )
 
@@ -100,7 +101,7 @@ class ImageProcNode(_PerceptionNode):
             self._pubs["image_rect"].publish(self._rect.rectify(mono, info))
             self._pubs["image_rect_color"].publish(self._rect.rectify(color, info))
         except VisnavError as exc:
-            self._fail(exc)
+            self._fail(exc, "image_raw", "camera_info")
 
 
 class PointCloudXyzNode(_PerceptionNode):
@@ -121,7 +122,7 @@ class PointCloudXyzNode(_PerceptionNode):
         try:
             self._pub.publish(self._conv.convert(depth, info))
         except VisnavError as exc:
-            self._fail(exc)
+            self._fail(exc, "image_rect", "camera_info")
 
 
 class PointCloudXyzrgbNode(_PerceptionNode):
@@ -149,7 +150,9 @@ class PointCloudXyzrgbNode(_PerceptionNode):
         try:
             self._pub.publish(self._conv.convert(depth, rgb, info))
         except VisnavError as exc:
-            self._fail(exc)
+            self._fail(
+                exc, "depth_registered/image_rect", "rgb/image_rect_color", "rgb/camera_info"
+            )
 
 
 class ConvertMetricNode(_PerceptionNode):
@@ -164,7 +167,7 @@ class ConvertMetricNode(_PerceptionNode):
         try:
             self._pub.publish(convert_metric(msg))
         except VisnavError as exc:
-            self._fail(exc)
+            self._fail(exc, "image_raw")
 
 
 class DepthImageToLaserScanNode(_PerceptionNode):
@@ -211,4 +214,4 @@ class DepthImageToLaserScanNode(_PerceptionNode):
         try:
             self._pub.publish(self.converter.convert(msg, self._info))
         except VisnavError as exc:
-            self._fail(exc)
+            self._fail(exc, "depth", "depth_camera_info")
