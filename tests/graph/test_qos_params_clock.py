@@ -79,3 +79,23 @@ def test_clock_sim_time() -> None:
     steady = Clock(ClockType.STEADY_TIME)
     steady.enable_sim_time()
     assert not steady.ros_time_is_active
+
+
+def test_qos_policies_by_short_name_become_the_enums() -> None:
+    qos = QoSProfile(depth=1, durability="transient_local", reliability="BEST_EFFORT")  # type: ignore[arg-type]
+    assert qos.durability is DurabilityPolicy.TRANSIENT_LOCAL
+    assert qos.reliability is ReliabilityPolicy.BEST_EFFORT
+    assert qos == QoSProfile(
+        depth=1,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        reliability=ReliabilityPolicy.BEST_EFFORT,
+    )
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("durability", "latched"), ("history", 3), ("reliability", None), ("depth", "10")],
+)
+def test_qos_refuses_what_is_not_a_policy(field: str, value: object) -> None:
+    with pytest.raises(GraphError, match=rf"QoSProfile\.{field} is"):
+        QoSProfile(**{field: value})  # type: ignore[arg-type]

@@ -71,6 +71,16 @@ class QoSProfile:
     durability: DurabilityPolicy = DurabilityPolicy.VOLATILE
 
     def __post_init__(self) -> None:
+        # rclpy's QoSProfile refuses what is not its enum; visnav also takes the policy's
+        # short name (rclpy's ``get_from_short_key``), e.g. "transient_local", and refuses
+        # anything else instead of keeping a string no comparison would ever match
+        for name, policy in _POLICY_FIELDS:
+            value = getattr(self, name)
+            if not isinstance(value, policy):
+                object.__setattr__(self, name, _policy_from(name, policy, value))
+        if isinstance(self.depth, bool) or not isinstance(self.depth, int):
+            msg = f"QoSProfile.depth is {self.depth!r}: expected an int (e.g. depth=10)"
+            raise GraphError(msg)
         if self.history is HistoryPolicy.KEEP_LAST and self.depth < 1:
             msg = (
                 f"QoSProfile.depth is {self.depth}: keep-last history needs depth >= 1 "
@@ -87,6 +97,25 @@ class QoSProfile:
         """Return a compact text form, e.g. ``reliable/volatile/keep_last(10)``."""
         hist = "keep_all" if self.history is HistoryPolicy.KEEP_ALL else f"keep_last({self.depth})"
         return f"{self.reliability.value}/{self.durability.value}/{hist}"
+
+
+_POLICY_FIELDS: tuple[tuple[str, type[enum.Enum]], ...] = (
+    ("history", HistoryPolicy),
+    ("reliability", ReliabilityPolicy),
+    ("durability", DurabilityPolicy),
+)
+
+
+def _policy_from(name: str, policy: type[enum.Enum], value: object) -> enum.Enum:
+    """Return ``policy``'s member named by ``value`` (its short name), or raise GraphError."""
+    if isinstance(value, str):
+        key = value.strip().lower()
+        for member in policy:
+            if key in (member.value, member.name.lower()):
+                return member
+    choices = ", ".join(f"{policy.__name__}.{m.name} ({m.value!r})" for m in policy)
+    msg = f"QoSProfile.{name} is {value!r}: expected one of {choices}"
+    raise GraphError(msg)
 
 
 qos_profile_system_default = QoSProfile()
