@@ -45,6 +45,7 @@ def _launch(path: Path, domain: int, **kwargs: object) -> subprocess.Popen[str]:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.parametrize("process", ["shared", "own"])
 def test_a_second_bare_launch_with_a_sim_is_refused(
     domain: int, tmp_path: Path, process: str

@@ -276,13 +276,8 @@ def test_depth_analytic_plane(sensors: list[CameraSensor]) -> None:
     np.testing.assert_allclose(depth, 3.2, atol=1e-3)
 
 
-def test_depth_comes_from_the_depth_pass(
-    sensors: list[CameraSensor], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    spec = depth_spec()
-    model, data = build_scene(spec, add_depth_scene)
-    sensor = CameraSensor(model, spec, camera="cam")
-    sensors.append(sensor)
+def _log_passes(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, bool]]:
+    """Record every render (segmentation flag) and read-back (colour, depth) of the sensor."""
     log: list[tuple[str, bool]] = []
     real_render, real_read = mujoco.mjr_render, mujoco.mjr_readPixels
 
@@ -292,22 +287,115 @@ def test_depth_comes_from_the_depth_pass(
 
     def read(rgb: object, depth: object, rect: object, ctx: object) -> None:
         log.append(("read_rgb" if rgb is not None else "read_depth", depth is not None))
-        assert rgb is None or depth is None, "colour and depth read from one pass"
         real_read(rgb, depth, rect, ctx)
 
     monkeypatch.setattr(camera_module.mujoco, "mjr_render", render)
     monkeypatch.setattr(camera_module.mujoco, "mjr_readPixels", read)
+    return log
+
+
+def _depth_pass_only(
+    model: mujoco.MjModel, data: mujoco.MjData, spec: CameraSpec, sensors: list[CameraSensor]
+) -> np.ndarray:
+    """Depth from the separate segmentation pass (a depth-only sensor of the same camera)."""
+    sensor = CameraSensor(model, spec, camera="cam", render_color=False)
+    sensors.append(sensor)
+    depth = sensor.render(data).depth
+    assert depth is not None
+    assert sensor.depth_passes == 1
+    return depth
+
+
+def no_msaa(add: Callable[[mujoco.MjSpec], None]) -> Callable[[mujoco.MjSpec], None]:
+    """``add`` in a model without multisampling (the simulator's default, msaa_samples=0)."""
+
+    def build(mj: mujoco.MjSpec) -> None:
+        mj.visual.quality.offsamples = 0
+        add(mj)
+
+    return build
+
+
+def test_colour_and_depth_from_one_lit_pass(
+    sensors: list[CameraSensor], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    spec = depth_spec(width=80, height=60)
+    model, data = build_scene(spec, no_msaa(add_depth_scene))
+    separate = _depth_pass_only(model, data, spec, sensors)
+    sensor = CameraSensor(model, spec, camera="cam")
+    sensors.append(sensor)
+    log = _log_passes(monkeypatch)
     frame = sensor.render(data)
     assert frame.image is not None
     assert frame.depth is not None
-    assert log == [
-        ("render", False),
-        ("read_rgb", False),
-        ("render", True),
-        ("read_depth", True),
-    ]
+    # one lit render, colour and depth read back together; no segmentation pass
+    assert log == [("render", False), ("read_rgb", True)]
+    assert sensor.depth_passes == 0
+    # the lit pass's depth is the segmentation pass's, bit for bit
+    np.testing.assert_array_equal(frame.depth, separate)
+    assert np.isfinite(frame.depth).mean() > 0.9
     assert not sensor._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT]
     assert not sensor._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW]
+
+
+def test_multisampling_takes_the_depth_pass(sensors: list[CameraSensor]) -> None:
+    """Multisampled depth differs at silhouettes: MuJoCo's default 4 samples need the pass."""
+    spec = depth_spec(width=80, height=60)
+    model, data = build_scene(spec, add_depth_scene)
+    assert model.vis.quality.offsamples == 4
+    sensor = CameraSensor(model, spec, camera="cam")
+    sensors.append(sensor)
+    frame = sensor.render(data)
+    assert frame.image is not None
+    assert sensor.depth_passes == 1
+
+
+def test_transparent_geom_takes_the_depth_pass(
+    sensors: list[CameraSensor], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A half-transparent pane is drawn without depth in the lit pass: depth needs its pass."""
+    spec = depth_spec(width=80, height=60)
+
+    def pane(mj: mujoco.MjSpec) -> None:
+        add_depth_scene(mj)
+        mj.worldbody.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.01, 0.4, 0.4], pos=[1.0, 0, 0],
+            rgba=[0.2, 0.2, 0.9, 0.5],
+        )  # fmt: skip
+
+    model, data = build_scene(spec, no_msaa(pane))
+    separate = _depth_pass_only(model, data, spec, sensors)
+    sensor = CameraSensor(model, spec, camera="cam")
+    sensors.append(sensor)
+    log = _log_passes(monkeypatch)
+    depth = sensor.render(data).depth
+    assert depth is not None
+    np.testing.assert_allclose(depth[30, 40], 0.99, atol=2e-3)  # the pane, not the sphere
+    np.testing.assert_array_equal(depth, separate)
+    assert log == [("render", False), ("read_rgb", False), ("render", True), ("read_depth", True)]
+    assert sensor.depth_passes == 1
+
+
+def test_skybox_takes_the_depth_pass(sensors: list[CameraSensor]) -> None:
+    """The lit pass draws the skybox with depth (0.7 of the far clip): sky must stay invalid."""
+    spec = depth_spec(width=80, height=60, clip_far=5.0)
+
+    def sky(mj: mujoco.MjSpec) -> None:
+        mj.add_texture(
+            name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+            builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, width=32, height=32,
+            rgb1=[0.4, 0.6, 0.8], rgb2=[0, 0, 0],
+        )  # fmt: skip
+        mj.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.5, 0.5], pos=[2.1, 0, 0])
+
+    model, data = build_scene(spec, no_msaa(sky))
+    sensor = CameraSensor(model, spec, camera="cam")
+    sensors.append(sensor)
+    frame = sensor.render(data)
+    assert frame.depth is not None
+    assert np.isnan(frame.depth[0:5, 0:5]).all()  # sky: no depth
+    np.testing.assert_allclose(frame.depth[30, 40], 2.0, atol=2e-3)
+    assert sensor.depth_passes == 1
 
 
 def clip_scene(mj: mujoco.MjSpec) -> None:

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
 from visnav.graph import Context, Node
-from visnav.msgs import Image
+from visnav.msgs import Image, PointCloud2
 from visnav.sim.plugins import CameraPlugin
 from visnav.sim.simulator import Simulator
 
@@ -38,3 +39,38 @@ def test_a_camera_renders_only_while_subscribed(ctx: Context) -> None:
         frames = rgb.frames
         sim.run(0.2)
         assert rgb.frames == frames  # off again when the last subscriber left
+
+
+def test_only_subscribed_outputs_are_made(ctx: Context) -> None:
+    """Depth alone: no colour pass, no cloud; the cloud only once /points has a subscriber."""
+    with Simulator(small_world(), [car()], context=ctx) as sim:
+        depth_cam = next(
+            p for p in sim.robot().plugins if isinstance(p, CameraPlugin) and p.spec.depth_topic
+        )
+        spec = depth_cam.spec
+        assert spec.depth_topic
+        assert spec.points_topic
+        assert spec.image_topic
+        calls: list[bool] = []
+        real_cloud = depth_cam.sensor._cloud
+
+        def cloud(*args: Any, **kwargs: Any) -> Any:
+            calls.append(True)
+            return real_cloud(*args, **kwargs)
+
+        depth_cam.sensor._cloud = cloud  # type: ignore[method-assign]
+        got: dict[str, list[Any]] = {"depth": [], "points": [], "image": []}
+        listener = Node("listener", context=ctx)
+        listener.create_subscription(Image, spec.depth_topic, got["depth"].append, 10)
+        sim.run(0.2)  # 20 Hz
+        assert len(got["depth"]) >= 3
+        assert calls == []  # nobody wants the cloud: not built
+        assert depth_cam.sensor.depth_passes == len(got["depth"])  # depth pass only
+        listener.create_subscription(PointCloud2, spec.points_topic, got["points"].append, 10)
+        listener.create_subscription(Image, spec.image_topic, got["image"].append, 10)
+        passes = depth_cam.sensor.depth_passes
+        sim.run(0.2)
+        assert len(got["points"]) >= 3
+        assert len(calls) == len(got["points"]) == len(got["image"])
+        # colour and depth wanted: one lit pass gives both (no separate depth pass)
+        assert depth_cam.sensor.depth_passes == passes

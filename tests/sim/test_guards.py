@@ -11,7 +11,7 @@ import pytest
 
 from visnav.description.robot import expand_xacro, load_robot
 from visnav.description.urdf import RobotDescriptionError
-from visnav.description.world import world_from_dict
+from visnav.description.world_yaml import world_from_dict
 from visnav.graph import Context, Node
 from visnav.msgs.types import Clock
 from visnav.sim.guards import (

@@ -22,7 +22,7 @@ from visnav.description.robots import resolve_robot
 from visnav.description.urdf import parse_urdf
 from visnav.errors import VisnavError
 from visnav.sim.camera import CameraSensor, configure_mujoco_camera
-from visnav.sim.noise_models import WheelEncoderModel, apply_depth_noise
+from visnav.sim.noise_models import WheelEncoderModel, apply_depth_noise, noisy_depth_in_range
 from visnav.sim.vehicles.diff_drive import EncoderOdometry
 
 SEPARATION = 0.36
@@ -318,3 +318,52 @@ def test_load_robot_with_noise_tags() -> None:
         )
     )
     assert desc.gazebo.diff_drives[0].odometry_noise.wheel_slip == 0.02
+
+
+def _reference_noisy_depth(
+    depth: np.ndarray, noise: DepthNoise, seed: int, lo: float, hi: float
+) -> np.ndarray:
+    """The numpy steps the camera used: range marked on the true depth, noise, NaN."""
+    out = depth.copy()
+    invalid = (out <= lo) | (out >= hi)
+    apply_depth_noise(out, noise, np.random.default_rng(seed))
+    out[invalid] = np.nan
+    return out
+
+
+@pytest.mark.parametrize(
+    "noise",
+    [
+        KINECT,
+        DepthNoise(disparity_stddev=0.3),
+        DepthNoise(disparity_step=0.125),
+        DepthNoise(baseline=0.05, focal_length=400.0, disparity_stddev=0.5, disparity_step=0.25),
+        DepthNoise(),  # inactive: the range check only
+    ],
+)
+def test_fused_depth_noise_is_the_numpy_steps_bit_for_bit(noise: DepthNoise) -> None:
+    rng = np.random.default_rng(11)
+    depth = rng.uniform(-1.0, 14.0, (48, 64)).astype(np.float32)
+    specials = [np.nan, np.inf, -np.inf, 0.0, 0.1, 10.0, 1e-30, 500.0]
+    depth.reshape(-1)[: len(specials)] = specials
+    lo, hi = 0.1, 10.0
+    want = _reference_noisy_depth(depth, noise, 5, lo, hi)
+    got = depth.copy()
+    noisy_depth_in_range(got, noise, np.random.default_rng(5), (lo, hi))
+    np.testing.assert_array_equal(got, want)  # NaN where NaN, every other float equal
+    assert np.isnan(got).any()
+    changed = np.isfinite(depth) & (depth > lo) & (depth < hi) & (got != depth)
+    assert changed.any() == noise.active
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    values=st.lists(st.floats(width=32, allow_nan=True, allow_infinity=True), min_size=1),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_fused_depth_noise_matches_on_any_floats(values: list[float], seed: int) -> None:
+    depth = np.asarray(values, dtype=np.float32)
+    want = _reference_noisy_depth(depth, KINECT, seed, 0.1, 10.0)
+    got = depth.copy()
+    noisy_depth_in_range(got, KINECT, np.random.default_rng(seed), (0.1, 10.0))
+    np.testing.assert_array_equal(got, want)

@@ -19,8 +19,10 @@ import pytest
 from visnav.description.robot import RobotDescription
 from visnav.description.robots import resolve_robot
 from visnav.description.urdf import RobotDescriptionError
-from visnav.description.world import WorldDescription, world_from_dict
-from visnav.graph import Context, DurabilityPolicy, Node, QoSProfile
+from visnav.description.world_yaml import world_from_dict
+from visnav.description.worldmodel import WorldDescription
+from visnav.graph import Context, Node
+from visnav.graph.qos import qos_profile_latched
 from visnav.msgs import (
     CameraInfo,
     Clock,
@@ -224,7 +226,7 @@ def test_tf_tree_and_robot_description(ctx: Context) -> None:
     buffer = Buffer()
     TransformListener(buffer, node)
     descriptions: list[str] = []
-    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    qos = qos_profile_latched
     with Simulator(small_world(), [car()], context=ctx) as sim:
         node.create_subscription(
             String, "/robot_description", lambda msg: descriptions.append(msg.data), qos

@@ -2,8 +2,20 @@
 
 A :class:`CameraSensor` renders one :class:`~visnav.description.gazebo.CameraSpec` from a
 compiled MuJoCo model: RGB from MuJoCo's lit pass (shadows and reflections off)
-and depth from a separate depth pass (segmentation colours, depth buffer read
-back and linearised), never from the lit pass.
+and depth from the depth buffer, read back and linearised.
+
+One pass or two. MuJoCo's lit pass draws every opaque geom with depth writes on, so
+its depth buffer is the depth of the opaque scene, exactly what a segmentation pass
+(flat colours, no lighting) leaves. The two differ only where the lit pass draws
+something that is not geometry or hides geometry from the depth buffer: the skybox
+(a textured cylinder at 0.7 of the far clip, with depth), transparent geoms (alpha
+below 0.995, and planes seen from behind, drawn with depth writes off), geoms without
+a segmentation id, and multisampling. A sensor that renders colour and depth therefore
+reads both buffers from the one lit pass when none of these is in its frame (checked
+per frame after the render: the skybox and multisampling from the model, transparency
+from the flags MuJoCo sets on the scene's geoms), and renders the separate
+segmentation pass for depth only when one is. The depth is then bit-identical to the
+separate pass's (tests/sim/test_camera.py), at the cost of one render instead of two.
 
 Geometry. MuJoCo cameras look along -z with y up; the MuJoCo camera sits at
 the sensor's link and ``<pose>`` with that orientation, so the published data
@@ -54,7 +66,7 @@ from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import CameraInfo, Header, Image, PointCloud2, RegionOfInterest
 from visnav.sim.errors import CameraSensorError
 from visnav.sim.gl import RenderContext, RenderingUnavailableError, select_gl_backend
-from visnav.sim.noise_models import apply_depth_noise
+from visnav.sim.noise_models import apply_depth_noise, noisy_depth_in_range
 
 __all__ = [
     "CameraFrame",
@@ -413,6 +425,16 @@ class CameraSensor:
         flags = self._scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+        # The lit pass's depth buffer is the depth pass's unless a skybox or
+        # multisampling is drawn (module docstring); transparency is checked per frame.
+        skybox = bool(np.any(model.tex_type == int(mujoco.mjtTexture.mjTEXTURE_SKYBOX)))
+        self._one_pass_possible = (
+            self.render_color
+            and self.render_depth
+            and not (skybox and flags[mujoco.mjtRndFlag.mjRND_SKYBOX])
+            and int(self.context.mjr.offSamples) == 0
+        )
+        self.depth_passes = 0  # frames whose depth needed the separate segmentation pass
         self._rect = mujoco.MjrRect(0, 0, self.layout.width, self.layout.height)
         shape = (self.layout.height, self.layout.width)
         self._rgb = np.empty((*shape, 3), dtype=np.uint8)
@@ -431,8 +453,10 @@ class CameraSensor:
     # rendering ---------------------------------------------------------------
 
     def _render_passes(
-        self, data: mujoco.MjData
+        self, data: mujoco.MjData, *, color: bool = True, depth: bool = True
     ) -> tuple[NDArray[np.uint8] | None, NDArray[np.float32] | None]:
+        want_color = self.render_color and color
+        want_depth = self.render_depth and depth
         vis = self.model.vis.map
         extent = float(self.model.stat.extent)
         saved = (float(vis.znear), float(vis.zfar))
@@ -449,12 +473,18 @@ class CameraSensor:
                 self._scene,
             )
             self.context.make_current()
-            rgb = depth = None
-            if self.render_color:
+            rgb = metric = None
+            have_depth = False
+            if want_color:
                 mujoco.mjr_render(self._rect, self._scene, self.context.mjr)
-                mujoco.mjr_readPixels(self._rgb, None, self._rect, self.context.mjr)
+                have_depth = (
+                    want_depth and self._one_pass_possible and not self._transparent_in_scene()
+                )
+                zbuf = self._zbuf if have_depth else None
+                mujoco.mjr_readPixels(self._rgb, zbuf, self._rect, self.context.mjr)
                 rgb = self._rgb[::-1]
-            if self.render_depth:
+            if want_depth and not have_depth:
+                self.depth_passes += 1
                 flags = self._scene.flags
                 saved_flags = (
                     flags[mujoco.mjtRndFlag.mjRND_SEGMENT],
@@ -468,17 +498,23 @@ class CameraSensor:
                 finally:
                     flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = saved_flags[0]
                     flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = saved_flags[1]
+            if want_depth:
                 glcam = self._scene.camera[0]
                 near = np.float32(glcam.frustum_near)
                 far = np.float32(glcam.frustum_far)
                 # Reversed-Z depth buffer (1 at near, 0 at far) back to metric z.
                 # depth = f n / (z (f - n) + n), in float32 (relative error ~1e-7).
-                depth = np.multiply(self._zbuf[::-1], far - near, dtype=np.float32)
-                depth += near
-                np.divide(far * near, depth, out=depth)
+                metric = np.multiply(self._zbuf[::-1], far - near, dtype=np.float32)
+                metric += near
+                np.divide(far * near, metric, out=metric)
         finally:
             vis.znear, vis.zfar = saved
-        return rgb, depth
+        return rgb, metric
+
+    def _transparent_in_scene(self) -> bool:
+        """True when the last lit pass drew a geom without depth (set by ``mjr_render``)."""
+        scene = self._scene
+        return any(g.transparent or g.segid < 0 for g in scene.geoms[: scene.ngeom])
 
     def _warp(self, image: NDArray[Any], *, nearest: bool) -> NDArray[Any]:
         if self.layout.map_x is None or self.layout.map_y is None:
@@ -526,6 +562,9 @@ class CameraSensor:
         spec = self.spec
         out = self._warp(depth, nearest=True)  # a fresh array: modified in place
         lo, hi = spec.depth_range
+        if not spec.noise.active and out.flags.c_contiguous:
+            noisy_depth_in_range(out, spec.depth_noise, self.rng, (lo, hi))  # one pass
+            return out
         invalid = (out <= lo) | (out >= hi)
         if spec.noise.active:
             out += self.rng.normal(spec.noise.mean, spec.noise.stddev, size=out.shape).astype(
@@ -578,44 +617,61 @@ class CameraSensor:
             is_dense=bool(np.isfinite(metres).all()),
         )
 
-    def render(self, data: mujoco.MjData, *, stamp_ns: int = 0) -> CameraFrame:
+    def render(
+        self,
+        data: mujoco.MjData,
+        *,
+        stamp_ns: int = 0,
+        image: bool = True,
+        depth: bool = True,
+        points: bool = True,
+    ) -> CameraFrame:
         """Render the current state of ``data`` into messages stamped ``stamp_ns``.
+
+        ``image``, ``depth`` and ``points`` say which outputs are wanted (the plugin
+        passes whether each topic has a subscriber): what is not wanted is not rendered
+        or computed (a cloud with colour needs the colour pass; depth noise is drawn only
+        when depth is rendered, colour noise only when colour is).
 
         Args:
             data: MuJoCo data of the sensor's model (after ``mj_forward``/``mj_step``).
             stamp_ns: the header stamp (sim time in integer nanoseconds).
+            image: produce the colour image (when the sensor renders colour).
+            depth: produce the depth image (depth sensors).
+            points: produce the point cloud (depth sensors with ``pointcloud``).
 
         Returns:
             The frame: ``camera_info`` always; ``image`` when colour is rendered and
-            depth image, depth camera info and points for a depth sensor.
+            depth image, depth camera info and points for a depth sensor, each only
+            when wanted.
         """
         spec = self.spec
         header = Header(stamp=ns_to_time(stamp_ns), frame_id=spec.frame_id)
         info = camera_info(spec, header)
-        rgb, depth = self._render_passes(data)
-        color = image = None
+        points = points and spec.pointcloud and self.render_depth
+        rgb, raw_depth = self._render_passes(data, color=image or points, depth=depth or points)
+        color = image_msg = None
         if rgb is not None:
             color = self._color(rgb)
-            image = _wrap_image(color, spec.encoding, header)
-        if depth is None:
-            return CameraFrame(stamp_ns, info, image=image, color=color)
-        metres = self._depth(depth)
-        if spec.depth_encoding == "16UC1":
+            image_msg = _wrap_image(color, spec.encoding, header) if image else None
+        if raw_depth is None:
+            return CameraFrame(stamp_ns, info, image=image_msg, color=color)
+        metres = self._depth(raw_depth)
+        depth_image = None
+        if depth and spec.depth_encoding == "16UC1":
             mm = np.nan_to_num(np.rint(metres * 1000.0), nan=0.0)
             mm = np.where(mm > 65535.0, 0.0, mm)
             depth_image = _wrap_image(mm.astype(np.uint16), "16UC1", header)
-        else:
+        elif depth:
             depth_image = _wrap_image(metres, "32FC1", header)
-        points = None
-        if spec.pointcloud:
-            points = self._cloud(metres, color, header)
+        cloud = self._cloud(metres, color, header) if points else None
         return CameraFrame(
             stamp_ns,
             info,
-            image=image,
+            image=image_msg,
             depth_image=depth_image,
-            depth_camera_info=info,
-            points=points,
+            depth_camera_info=info if depth else None,
+            points=cloud,
             color=color,
             depth=metres,
         )

@@ -26,6 +26,7 @@ from __future__ import annotations
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from visnav.graph.node import Node
 from visnav.msgs.serde import get_message_class
@@ -73,38 +74,56 @@ class ContactSensor(SimPlugin):
     def __init__(self, node: Node, model: mujoco.MjModel, root_body: int, rate_hz: float) -> None:
         super().__init__(node, "contacts")
         self._model = model
-        self._robot = {b for b in range(model.nbody) if int(model.body_rootid[b]) == root_body}
+        robot_bodies = np.asarray(model.body_rootid) == root_body
+        # per geom: does it belong to the robot (contacts are filtered with numpy)
+        self._robot_geom = robot_bodies[np.asarray(model.geom_bodyid)]
+        self._labels: dict[int, str] = {}  # geom -> label, filled on first contact
         self._clock = SensorClock(rate_hz)
         self._status = get_message_class("diagnostic_msgs/msg/DiagnosticStatus")
         self._key_value = get_message_class("diagnostic_msgs/msg/KeyValue")
         self._array = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
         self._pub = node.create_publisher(self._array, CONTACT_TOPIC, DEFAULT_QOS)
 
+    def _label(self, geom: int) -> str:
+        label = self._labels.get(geom)
+        if label is None:
+            label = self._labels[geom] = geom_label(self._model, geom)
+        return label
+
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Publish the contacts at ``now_ns`` when a sample is due."""
         if not self._clock.due(now_ns):
             return
-        model, robot = self._model, self._robot
         statuses: list[Any] = []
-        for c in data.contact[: data.ncon]:
-            g1, g2 = int(c.geom1), int(c.geom2)
-            in1, in2 = int(model.geom_bodyid[g1]) in robot, int(model.geom_bodyid[g2]) in robot
-            if in1 == in2:
-                continue
-            own, other = (g1, g2) if in1 else (g2, g1)
-            pos = c.pos
-            values = [
-                self._key_value(key=k, value=f"{v:.6g}")
-                for k, v in (("x", pos[0]), ("y", pos[1]), ("z", pos[2]), ("depth", -c.dist))
-            ]
-            statuses.append(
-                self._status(
-                    level=0,
-                    name=geom_label(model, own),
-                    message=_SHAPES.get(int(model.geom_type[other]), "other"),
-                    hardware_id=geom_label(model, other),
-                    values=values,
-                )
-            )
+        ncon = int(data.ncon)
+        if ncon:
+            contacts = data.contact
+            g1 = np.asarray(contacts.geom1[:ncon])
+            g2 = np.asarray(contacts.geom2[:ncon])
+            in1 = self._robot_geom[g1]
+            mixed = np.flatnonzero(in1 != self._robot_geom[g2])  # robot vs the rest only
+            if len(mixed):
+                pos = np.asarray(contacts.pos[:ncon])[mixed].tolist()
+                depth = (-np.asarray(contacts.dist[:ncon])[mixed]).tolist()
+                types = self._model.geom_type
+                kv, status = self._key_value, self._status
+                for i, k in enumerate(mixed.tolist()):
+                    a, b = int(g1[k]), int(g2[k])
+                    own, other = (a, b) if in1[k] else (b, a)
+                    x, y, z = pos[i]
+                    statuses.append(
+                        status(
+                            level=0,
+                            name=self._label(own),
+                            message=_SHAPES.get(int(types[other]), "other"),
+                            hardware_id=self._label(other),
+                            values=[
+                                kv(key="x", value=f"{x:.6g}"),
+                                kv(key="y", value=f"{y:.6g}"),
+                                kv(key="z", value=f"{z:.6g}"),
+                                kv(key="depth", value=f"{depth[i]:.6g}"),
+                            ],
+                        )
+                    )
         header = Header(stamp=ns_to_time(now_ns), frame_id="world")
         self._pub.publish(self._array(header=header, status=statuses))

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from visnav.description.noise_specs import DepthNoise, WheelOdometryNoise
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
 
-__all__ = ["WheelEncoderModel", "apply_depth_noise"]
+__all__ = ["WheelEncoderModel", "apply_depth_noise", "noisy_depth_in_range"]
 
 _BLOCK = 4096  # standard normal samples drawn at a time by the wheel model
 
@@ -87,6 +88,78 @@ class WheelEncoderModel:
         if self.noise.wheel_slip and travel:
             travel += self.noise.wheel_slip * math.sqrt(abs(travel)) * self._normal()
         return travel
+
+
+@numba.njit(cache=True)
+def _disparity_kernel(
+    depth: NDArray[np.float32],
+    normals: NDArray[np.float32],
+    fb: np.float32,
+    stddev: np.float32,
+    step: np.float32,
+    lo: np.float32,
+    hi: np.float32,
+) -> None:  # pragma: no cover - compiled; tests compare it with the numpy reference
+    """:func:`apply_depth_noise` and the range check in one pass, the same float32 steps.
+
+    ``fb`` 0 means no noise (the range check only).
+    """
+    nan = np.float32(np.nan)
+    for i in range(depth.size):
+        d = depth[i]
+        if d <= lo or d >= hi:  # out of range: invalid, whatever the noise
+            depth[i] = nan
+            continue
+        if fb == 0 or not (np.isfinite(d) and d > 0):  # no noise; NaN, inf and <= 0 stay
+            continue
+        disparity = fb / d
+        if stddev > 0:
+            disparity += normals[i] * stddev
+        if step > 0:
+            disparity = np.float32(np.rint(disparity / step)) * step
+        noisy = fb / disparity
+        depth[i] = noisy if noisy > 0 else nan
+
+
+def noisy_depth_in_range(
+    depth: NDArray[np.float32],
+    noise: DepthNoise,
+    rng: np.random.Generator,
+    depth_range: tuple[float, float],
+) -> None:
+    """Disparity noise and the sensor's range check on a depth image, in place.
+
+    The same result, bit for bit, as marking the true depths outside ``(lo, hi)``, then
+    :func:`apply_depth_noise`, then setting the marked pixels to NaN (one compiled pass
+    instead of a dozen array operations: the car's 640x480 depth at 20 Hz spent ~4 ms a
+    frame on them).
+
+    Args:
+        depth: Contiguous float32 depth in metres (modified).
+        noise: The sensor model (inactive: only the range check).
+        rng: The sensor's seeded generator (the same draws as :func:`apply_depth_noise`).
+        depth_range: ``(lo, hi)``; depths outside the open interval become NaN.
+    """
+    flat = depth.reshape(-1)
+    if not np.shares_memory(flat, depth):  # pragma: no cover - callers pass contiguous arrays
+        msg = "noisy_depth_in_range needs a contiguous depth array"
+        raise ValueError(msg)
+    active = noise.active
+    stddev = np.float32(noise.disparity_stddev if active else 0.0)
+    normals = (
+        rng.standard_normal(depth.shape, dtype=np.float32).reshape(-1)
+        if active and noise.disparity_stddev > 0.0
+        else np.zeros(1, dtype=np.float32)
+    )
+    _disparity_kernel(
+        flat,
+        normals,
+        np.float32(noise.focal_length * noise.baseline if active else 0.0),
+        stddev,
+        np.float32(noise.disparity_step if active else 0.0),
+        np.float32(depth_range[0]),
+        np.float32(depth_range[1]),
+    )
 
 
 def apply_depth_noise(

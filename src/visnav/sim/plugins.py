@@ -35,7 +35,7 @@ from rosbags.typesys.stores.ros2_humble import (
 )
 
 from visnav.description.rigid import matrix_to_quat_xyzw, quat_xyzw_to_matrix, rpy_to_matrix
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import QoSProfile
 from visnav.msgs.time import duration_to_ns, ns_to_time
 from visnav.msgs.types import (
     CameraInfo,
@@ -84,7 +84,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_QOS",
-    "LATCHED_QOS",
     "SENSOR_QOS",
     "CameraPlugin",
     "DiffDrivePlugin",
@@ -99,7 +98,6 @@ __all__ = [
 
 SENSOR_QOS = QoSProfile(depth=5)
 DEFAULT_QOS = QoSProfile(depth=10)
-LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def _header(stamp_ns: int, frame_id: str) -> Header:
@@ -172,7 +170,10 @@ class CameraPlugin(SimPlugin):
     An image and its camera_info share one header (stamp and frame_id). Rendering
     happens only at the sensor's update rate, and only while something subscribes to
     one of the camera's topics (as gazebo_ros_camera activates its sensor on connect):
-    a due frame nobody wants is counted in ``skipped`` and not rendered.
+    a due frame nobody wants is counted in ``skipped`` and not rendered. Of a frame,
+    only the outputs with a subscriber are made (the colour image, the depth image with
+    its camera_info, the point cloud; :meth:`CameraSensor.render`): a cloud nobody
+    subscribes to is not built.
 
     Args:
         node: the plugin's node.
@@ -191,7 +192,7 @@ class CameraPlugin(SimPlugin):
         self.render_ns = 0
         self.frames = 0
         self.skipped = 0
-        self._wanted = (-1, True)  # (graph version, anyone subscribed)
+        self._wanted = (-1, (True, True, True, True))  # version, (any, image, depth, points)
 
         def pub(msg_type: type[Any], topic: str | None) -> Any:
             return node.create_publisher(msg_type, topic, SENSOR_QOS) if topic else None
@@ -208,22 +209,39 @@ class CameraPlugin(SimPlugin):
             if p is not None
         ]
 
-    def wanted(self) -> bool:
-        """True when any of the camera's topics has a subscriber (checked on graph changes)."""
+    def _outputs(self) -> tuple[bool, bool, bool, bool]:
+        """(any topic, image, depth or its info, points) subscribed; checked on graph changes."""
         version = self.node.context.graph.version
         if version != self._wanted[0]:
-            self._wanted = (version, any(p.get_subscription_count() > 0 for p in self._pubs))
+
+            def subscribed(*pubs: Any) -> bool:
+                return any(p is not None and p.get_subscription_count() > 0 for p in pubs)
+
+            self._wanted = (
+                version,
+                (
+                    subscribed(*self._pubs),
+                    subscribed(self._image),
+                    subscribed(self._depth, self._depth_info),
+                    subscribed(self._points),
+                ),
+            )
         return self._wanted[1]
+
+    def wanted(self) -> bool:
+        """True when any of the camera's topics has a subscriber (checked on graph changes)."""
+        return self._outputs()[0]
 
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Measure at ``now_ns`` when due and wanted, and publish."""
         if not self.clock.due(now_ns):
             return
-        if not self.wanted():
+        wanted, image, depth, points = self._outputs()
+        if not wanted:
             self.skipped += 1
             return
         start = time.perf_counter_ns()
-        frame = self.sensor.render(data, stamp_ns=now_ns)
+        frame = self.sensor.render(data, stamp_ns=now_ns, image=image, depth=depth, points=points)
         self.render_ns += time.perf_counter_ns() - start
         self.frames += 1
         if self._image is not None and frame.image is not None:

@@ -36,7 +36,9 @@ Two ways to drive it:
   batches; nodes in the same context then react a batch late, not lock-step.
 
 The node itself publishes ``/clock``; the simulator's sensor and plugin nodes are
-created in the same context.
+created in the same context. It refuses to start (``SecondSimulationError``) when
+another node already publishes ``/clock`` in its graph domain, as ``visnav sim`` and
+``visnav run`` do: two simulations in one domain mix their clocks, TF and maps.
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.safe_yaml import load_yaml
 from visnav.sim.errors import SimulatorNodeError
-from visnav.sim.guards import SimulationUnstableError
+from visnav.sim.guards import SimulationUnstableError, refuse_second_simulation
 from visnav.sim.simulator import RobotSpawn, SimStats, Simulator
 
 if TYPE_CHECKING:
@@ -143,11 +145,13 @@ class SimulatorNode(Node):
 
     Raises:
         VisnavError: a bad parameter, world or robot (one line naming it).
+        SecondSimulationError: another node publishes ``/clock`` in the domain.
     """
 
     def __init__(self, name: str = "sim", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         try:
+            refuse_second_simulation(self.context, command="visnav launch")
             self.sim = self._build()
         except BaseException:
             super().destroy_node()

@@ -57,7 +57,8 @@ import numpy as np
 
 from visnav.description.robot import RobotDescription
 from visnav.description.robots import resolve_robot
-from visnav.description.world import WorldDescription, load_world
+from visnav.description.world import load_world
+from visnav.description.worldmodel import WorldDescription
 from visnav.graph.context import Context
 from visnav.graph.node import Node
 from visnav.graph.qos import QoSProfile
@@ -214,7 +215,7 @@ class Simulator:
     """A MuJoCo world with robots whose sensors and plugins publish on the graph.
 
     Args:
-        world: a :class:`~visnav.description.world.WorldDescription`, a built-in world name or
+        world: a :class:`~visnav.description.worldmodel.WorldDescription`, a built-in world name or
             a world file (:func:`~visnav.description.world.load_world`).
         robots: the robots (:class:`RobotSpawn`, or just a source each).
         context: the graph context; every simulator node is created in it, so

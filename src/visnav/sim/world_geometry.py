@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from visnav.description.worldmodel import Box, Cylinder, Mesh, Sphere, WorldError
+from visnav.description.errors import WorldError
+from visnav.description.worldmodel import Box, Cylinder, Mesh, Sphere
 
 if TYPE_CHECKING:
     import numpy.typing as npt

@@ -41,6 +41,7 @@ import numpy as np
 from visnav.description.vehicle_params import QuadrotorParams
 from visnav.sim.errors import QuadrotorError
 from visnav.sim.vehicles._state import BodyReader
+from visnav.tf.transforms import yaw_from_matrix
 
 if TYPE_CHECKING:
     import mujoco
@@ -336,7 +337,7 @@ class QuadrotorController:
         """
         state = self.state(data)
         if self.command is None:
-            yaw = math.atan2(state.rotation[1, 0], state.rotation[0, 0])
+            yaw = yaw_from_matrix(state.rotation)
             p = state.position
             self.command = PositionCommand.hold((float(p[0]), float(p[1]), float(p[2])), yaw)
         output = so3_control(
