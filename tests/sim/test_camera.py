@@ -545,6 +545,31 @@ def test_noise_is_seeded(sensors: list[CameraSensor]) -> None:
     assert np.std(diff[mid]) == pytest.approx(0.02 * 255, rel=0.15)
 
 
+def test_depth_noise_does_not_depend_on_whether_colour_is_made(
+    sensors: list[CameraSensor],
+) -> None:
+    # which outputs a camera makes follows its subscribers; the depth noise must not
+    from visnav.description.noise_specs import DepthNoise
+
+    spec = replace(
+        depth_spec(width=80, height=60),
+        noise=GaussianNoise(stddev=0.02),
+        depth_noise=DepthNoise(disparity_stddev=0.5, disparity_step=0.125),
+    )
+    model, data = build_scene(spec, add_depth_scene)
+    both = CameraSensor(model, spec, camera="cam", seed=3)
+    depth_only = CameraSensor(model, spec, camera="cam", seed=3)
+    sensors += [both, depth_only]
+    for _ in range(3):
+        a = both.render(data, image=True, depth=True, points=False)
+        b = depth_only.render(data, image=False, depth=True, points=False)
+        assert a.image is not None
+        assert b.image is None
+        assert a.depth is not None
+        assert b.depth is not None
+        np.testing.assert_array_equal(a.depth, b.depth)
+
+
 # --------------------------------------------------------------------------- end to end
 
 

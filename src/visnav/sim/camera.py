@@ -410,13 +410,15 @@ class CameraSensor:
                 "with max_width/max_height covering every camera"
             )
             raise CameraSensorError(msg)
+        # depth noise on ``seed``'s stream, colour noise on a stream of its own: which
+        # outputs are made depends on who subscribes, and must not shift the other's noise
         self.rng = np.random.default_rng(seed)
+        self._color_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
         self._noise: _ImageNoise | None = None
         if spec.noise.active and spec.encoding in _NOISE_POOL_ENCODINGS and self.render_color:
             channels = 1 if spec.encoding == "mono8" else 3
-            self._noise = _ImageNoise(
-                spec.noise.mean, spec.noise.stddev, spec.width * spec.height * channels, self.rng
-            )
+            size = spec.width * spec.height * channels
+            self._noise = _ImageNoise(spec.noise.mean, spec.noise.stddev, size, self._color_rng)
         self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
         self._option = mujoco.MjvOption()
         self._camera = mujoco.MjvCamera()
@@ -548,7 +550,7 @@ class CameraSensor:
         if noise.active:
             top = 65535.0 if deep else 255.0
             values = image.astype(np.float32) / np.float32(255.0)
-            values += self.rng.normal(noise.mean, noise.stddev, size=values.shape).astype(
+            values += self._color_rng.normal(noise.mean, noise.stddev, size=values.shape).astype(
                 np.float32
             )
             noisy: NDArray[Any] = np.clip(np.rint(values * top), 0, top)
