@@ -97,7 +97,9 @@ class PaceReporter:
         self._pub: Any = session.declare_publisher(
             pace_key(key, zid, entity_id),
             allowed_destination=zenoh.Locality.REMOTE,
-            congestion_control=zenoh.CongestionControl.BLOCK,
+            # never stall the reporting thread (the executor) on a congested link: a lost
+            # "paused" is repeated every PACE_REFRESH_S, a lost "room" expires with the lease
+            congestion_control=zenoh.CongestionControl.DROP,
             priority=zenoh.Priority.INTERACTIVE_HIGH,
             express=True,
         )
@@ -134,8 +136,9 @@ class PaceReporter:
             if self._closed:
                 return
             self._closed = True
-            with contextlib.suppress(Exception):
+            with contextlib.suppress(Exception):  # the session may be closing
                 self._pub.put(b"1")
+            with contextlib.suppress(Exception):
                 self._pub.undeclare()
 
 
