@@ -14,12 +14,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from visnav.slam.camera import CameraIntrinsics
+from visnav.tf.transforms import yaw_from_matrix
 
 __all__ = [
     "CHI2_MONO",
     "CHI2_STEREO",
     "PoseObservations",
     "inverse",
+    "level_pose",
     "optimize_pose",
     "orthonormalize",
     "pose_covariance",
@@ -280,3 +282,22 @@ def pose_covariance(
     except np.linalg.LinAlgError:
         return np.full((6, 6), np.inf)
     return cov
+
+
+def level_pose(t_map_base: FloatArray, z: float) -> FloatArray:
+    """Keep only x, y and yaw of a ground robot's pose, at height ``z`` (roll, pitch 0).
+
+    Args:
+        t_map_base: a 4x4 pose (x forward, z up, REP 103).
+        z: the height to put it at.
+
+    Returns:
+        The level 4x4 pose; its yaw is ``atan2(R10, R00)`` of ``t_map_base``.
+    """
+    yaw = yaw_from_matrix(t_map_base)
+    out = np.eye(4)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out[:2, :2] = [[c, -s], [s, c]]
+    out[:2, 3] = t_map_base[:2, 3]
+    out[2, 3] = z
+    return out

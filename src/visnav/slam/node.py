@@ -24,7 +24,9 @@ map -> odom stamp is post-dated, as amcl), ``tf_publish_period``, ``queue_size``
 ``seed``, ``loop_closure``, ``local_ba``, ``icp_refinement`` (dense ICP refinement of
 each pose, :mod:`visnav.slam.dense`), ``depth_noise`` (``sigma_z / z^2`` of the depth;
 about 0.002 for a Kinect-like sensor), ``vocabulary`` (a saved ``.npz``),
-``max_frame_rate`` (Hz; 0: every frame), ``odometry_prior``, ``sensor`` (``rgbd`` or
+``max_frame_rate`` (Hz; 0: every frame), ``odometry_prior``, ``odometry_wait`` (s of
+clock time a frame waits for ``odom -> base`` at its own stamp, 0.1; after it the newest
+transform is used and counted in ``odometry_fallbacks``), ``sensor`` (``rgbd`` or
 ``mono``) and ``mono_scale`` (``depth``: the depth image scales the monocular map at
 initialisation; ``odometry``: TF ``odom -> base`` does, and ``depth/image`` is not
 subscribed).
@@ -63,7 +65,6 @@ disagrees with wheel odometry by 5x or more is reported as a likely depth unit e
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -72,7 +73,7 @@ from numpy.typing import NDArray
 from visnav import message_filters
 from visnav.errors import VisnavError
 from visnav.graph.node import Node, NodeOptions
-from visnav.graph.param_dataclass import declare_params, param
+from visnav.graph.param_dataclass import declare_params
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import xyz_to_cloud
 from visnav.msgs.serde import get_message_class
@@ -89,7 +90,8 @@ from visnav.msgs.types import (
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamInputError
-from visnav.slam.geometry import inverse
+from visnav.slam.geometry import inverse, level_pose
+from visnav.slam.node_params import SlamParams
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
 from visnav.slam.worker import (
@@ -100,13 +102,20 @@ from visnav.slam.worker import (
     SlamWorkerError,
     make_worker,
 )
-from visnav.tf import Buffer, TransformException, matrix_to_pose, matrix_to_transform
+from visnav.tf import (
+    Buffer,
+    TransformException,
+    matrix_to_pose,
+    matrix_to_transform,
+    transform_to_matrix,
+)
+from visnav.tf.initial_pose import InitialPoseParams
 from visnav.tf.ros import TransformBroadcaster, TransformListener
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["InitialPoseParams", "SlamNode", "SlamParams"]
+__all__ = ["SlamNode", "SlamParams"]
 
 FloatArray = NDArray[np.float64]
 
@@ -127,49 +136,6 @@ def _image_array(msg: Image) -> NDArray[Any]:
         "or bgra8 (debayer and rectify with image_proc first)"
     )
     raise SlamInputError(text)
-
-
-@dataclass(frozen=True)
-class SlamParams:
-    """The SLAM node's parameters (read once at start; see the module docstring)."""
-
-    map_frame: str = param("map", description="the map frame SLAM publishes")
-    odom_frame: str = param("odom", description="odometry frame ('': publish map -> base)")
-    base_frame: str = param("base_link", description="the robot's base frame")
-    publish_tf: bool = param(True, description="publish map -> odom on /tf")
-    transform_tolerance: float = param(0.1, description="s the map -> odom stamp is post-dated")
-    tf_publish_period: float = param(0.05, description="s between map -> odom publications")
-    queue_size: int = param(10, description="synchroniser queue size")
-    approx_sync: bool = param(True, description="ApproximateTime (false: exact stamps)")
-    depth_scale: float = param(1000.0, description="16UC1 depth units per metre")
-    map_cloud_period: float = param(1.0, description="s between slam/map_points clouds")
-    path_publish_period: float = param(1.0, description="s of stamps between paths (0: every)")
-    dense_cloud_period: float = param(0.0, description="s between dense clouds (0: on request)")
-    dense_voxel: float = param(0.05, description="dense cloud voxel size (m)")
-    vocabulary: str = param("", description="a saved vocabulary .npz ('': built online)")
-    worker: str = param("inline", description="where SLAM runs: inline or process")
-    result_latency: float = param(0.0, description="s of stamp time a result is applied after")
-    set_initial_pose: bool = param(False, description="start at initial_pose.x/y/yaw")
-    max_frame_rate: float = param(0.0, description="Hz of processed frames (0: every frame)")
-    odometry_prior: bool = param(True, description="odom -> base predicts the camera motion")
-    n_features: int = param(1000, description="ORB features per frame")
-    seed: int = param(0, description="random seed")
-    loop_closure: bool = param(True, description="detect and close loops")
-    local_ba: bool = param(True, description="local bundle adjustment")
-    icp_refinement: bool = param(True, description="dense ICP refinement of each pose")
-    depth_noise: float = param(SlamConfig.depth_noise, description="sigma_z / z^2 of the depth")
-    sensor: str = param("rgbd", description="rgbd or mono")
-    mono_scale: str = param("depth", description="what scales a mono map: depth or odometry")
-    diagnostic_period: float = param(1.0, description="s between /diagnostics (0: on changes)")
-
-
-@dataclass(frozen=True)
-class InitialPoseParams:
-    """``initial_pose.*`` (nav2 AMCL's names), declared only with ``set_initial_pose``."""
-
-    x: float = param(0.0, description="start x of base_frame in the map (m)")
-    y: float = param(0.0, description="start y of base_frame in the map (m)")
-    yaw: float = param(0.0, description="start yaw of base_frame in the map (rad)")
 
 
 class SlamNode(Node):
@@ -211,7 +177,7 @@ class SlamNode(Node):
         self._initial_pose: FloatArray | None = None
         if prm.set_initial_pose:  # initial_pose.* are declared only then (as before)
             start = declare_params(self, InitialPoseParams, prefix="initial_pose.")
-            self._initial_pose = _planar_pose(start.x, start.y, start.yaw)
+            self._initial_pose = start.matrix()
         rate = prm.max_frame_rate
         if not (rate >= 0.0 and np.isfinite(rate)):
             text = f"max_frame_rate {rate}: expected a rate in Hz >= 0 (0 processes every frame)"
@@ -235,6 +201,18 @@ class SlamNode(Node):
         self.worker: SlamWorker | None = None
         self._worker_failure: str | None = None
         self._in_flight: deque[tuple[int, FloatArray]] = deque()  # stamp, T_odom_base
+        # frames awaiting their odometry, with their arrival (clock ns); at most queue_size,
+        # as tf2's MessageFilter bounds its queue
+        self._waiting: deque[tuple[Image, Image | None, int]] = deque()
+        self._waiting_limit = max(1, prm.queue_size)
+        wait = prm.odometry_wait
+        if not (wait >= 0.0 and np.isfinite(wait)):
+            text = f"odometry_wait {wait}: expected seconds >= 0 (0: use the newest odometry)"
+            raise SlamInputError(text)
+        self._odom_wait_ns = round(wait * 1e9)
+        self.odometry_fallbacks = 0
+        self.force_3dof = prm.force_3dof
+        self._level_z: float | None = None  # the base's height in the map at the first frame
         self.tracking = False
         self.cpu_s = 0.0  # the worker's CPU time on frames (its process or this thread)
         self._stats = SlamStats()
@@ -277,8 +255,9 @@ class SlamNode(Node):
         self._sync.register_callback(self._on_frame)
         if self.publish_tf and tf_period > 0:
             self.create_timer(tf_period, self._publish_tf)
-        if self._latency_ns > 0:  # results are due on the clock, between frames too
-            self.create_timer(min(0.005, latency / 2), self._apply_due)
+        if self._latency_ns > 0 or self.odom_frame:  # frames wait for odometry, results are
+            period = min(0.005, latency / 2) if self._latency_ns > 0 else 0.005  # due on the clock
+            self.create_timer(period, self._tick)
         if map_period > 0:
             self.create_timer(map_period, self._publish_map)
         if dense_period > 0:
@@ -339,19 +318,105 @@ class SlamNode(Node):
         stamp = time_to_ns(image.header.stamp)
         if self._skip(stamp):
             return
-        cam = self._check_camera(info, image)
-        camera_frame = str(image.header.frame_id)
+        self._check_camera(info, image)
+        self._last_stamp = stamp
+        if len(self._waiting) >= self._waiting_limit:
+            self._waiting.popleft()
+            self.dropped += 1
+            self.get_logger().warning(
+                f"dropped the oldest frame waiting for TF {self.odom_frame} -> "
+                f"{self.base_frame} ({self.dropped} so far): {self._waiting_limit} frames "
+                "wait already; is the odometry (or /clock) running?",
+                throttle_duration_sec=_LOG_PERIOD_S,
+            )
+        self._waiting.append((image, depth, self.get_clock().now_ns()))
+        self._submit_ready()
+
+    def _tick(self) -> None:
+        """Clock timer: submit frames whose odometry came, apply results that are due."""
+        self._submit_ready()
+        self._apply_due()
+
+    def _submit_ready(self) -> None:
+        """Submit the waiting frames, oldest first, once TF has odometry at their stamps.
+
+        A frame's ``odom -> base`` is looked up at the frame's own stamp: the odometry of
+        that instant often arrives after the image (a 50 Hz diff drive and a 20 Hz camera
+        share a stamp only every 100 ms), so the frame waits for it up to
+        ``odometry_wait`` s of clock time from its arrival (as tf2's MessageFilter times
+        out from arrival, so late images still wait); only then is the newest transform used.
+        """
+        while self._waiting:
+            image, depth, arrival = self._waiting[0]
+            stamp = time_to_ns(image.header.stamp)
+            t_odom_base, wait = self._odometry_at(stamp, str(image.header.frame_id), arrival)
+            if wait:
+                return
+            self._waiting.popleft()
+            if t_odom_base is None:  # no TF yet: the frame is left out (logged)
+                continue
+            try:
+                self._submit(image, depth, stamp, t_odom_base)
+            except VisnavError as exc:
+                self.dropped += 1
+                self.get_logger().error(
+                    f"dropped a frame ({self.dropped} so far): {exc}",
+                    throttle_duration_sec=_LOG_PERIOD_S,
+                )
+
+    def _odometry_at(
+        self, stamp: int, camera_frame: str, arrival: int
+    ) -> tuple[FloatArray | None, bool]:
+        """``(T_odom_base at stamp or None, wait)``; the mounting is looked up first."""
+        waiting = self.get_clock().now_ns() - arrival < self._odom_wait_ns
         if self._t_base_cam is None:
-            t_base_cam = self._lookup(self.base_frame, camera_frame, stamp)
-            if t_base_cam is None:
-                return
-            self._t_base_cam = t_base_cam
-        t_odom_base = np.eye(4)
-        if self.odom_frame:
-            found = self._lookup(self.odom_frame, self.base_frame, stamp)
-            if found is None:
-                return
-            t_odom_base = found
+            try:
+                self._t_base_cam = self.tf_buffer.lookup_transform_matrix(
+                    self.base_frame, camera_frame, 0
+                )
+            except TransformException:
+                if waiting:
+                    return None, True
+                t_base_cam = self._lookup(self.base_frame, camera_frame, stamp)  # logs
+                if t_base_cam is None:
+                    return None, False
+                self._t_base_cam = t_base_cam
+        if not self.odom_frame:
+            return np.eye(4), False
+        try:
+            return self.tf_buffer.lookup_transform_matrix(
+                self.odom_frame, self.base_frame, stamp
+            ), False
+        except TransformException:
+            pass
+        try:
+            newest = self.tf_buffer.lookup_transform(self.odom_frame, self.base_frame, 0)
+        except TransformException as exc:
+            if waiting:
+                return None, True
+            self.get_logger().warning(
+                f"waiting for TF {self.odom_frame} -> {self.base_frame} ({exc}); SLAM starts "
+                "when it exists",
+                throttle_duration_sec=_LOG_PERIOD_S,
+            )
+            return None, False
+        newest_ns = time_to_ns(newest.header.stamp)
+        if newest_ns < stamp and waiting:
+            return None, True
+        self.odometry_fallbacks += 1
+        self.get_logger().warning(
+            f"no TF {self.odom_frame} -> {self.base_frame} at the frame's stamp "
+            f"{stamp * 1e-9:.3f} s (newest {newest_ns * 1e-9:.3f} s): using the newest "
+            f"({self.odometry_fallbacks} frames so far); is the odometry late?",
+            throttle_duration_sec=_LOG_PERIOD_S,
+        )
+        return transform_to_matrix(newest.transform), False
+
+    def _submit(
+        self, image: Image, depth: Image | None, stamp: int, t_odom_base: FloatArray
+    ) -> None:
+        assert self._t_base_cam is not None  # _odometry_at looked it up
+        assert self.camera is not None  # _check_camera set it
         if self.worker is None:
             if self._worker_failure is not None:
                 raise SlamWorkerError(self._worker_failure)  # not restarted on every frame
@@ -359,7 +424,7 @@ class SlamNode(Node):
             try:
                 self.worker = make_worker(
                     self.worker_kind,
-                    cam,
+                    self.camera,
                     self.config,
                     vocabulary_path=self.vocabulary_path,
                     initial_pose=start @ self._t_base_cam,
@@ -376,7 +441,6 @@ class SlamNode(Node):
             if self.odom_frame and (self.odometry_prior or self._mono_odom)
             else None
         )
-        self._last_stamp = stamp
         self.worker.submit(_image_array(image), depth_arr, stamp, odom_pose)
         self._in_flight.append((stamp, t_odom_base))
         if self._latency_ns == 0:
@@ -424,7 +488,12 @@ class SlamNode(Node):
             self._publish_diagnostics()
         self.tracking = True
         t_map_base = result.t_wc @ inverse(self._t_base_cam)
-        self.t_map_odom = t_map_base @ inverse(t_odom_base)
+        t_tf_base = t_map_base
+        if self.force_3dof:  # a ground robot: SLAM's z, roll and pitch errors stay out of TF
+            if self._level_z is None:
+                self._level_z = float(t_map_base[2, 3])
+            t_tf_base = level_pose(t_map_base, self._level_z)
+        self.t_map_odom = t_tf_base @ inverse(t_odom_base)
         self._check_scale(t_map_base, t_odom_base)
         header = Header(stamp=ns_to_time(stamp), frame_id=self.map_frame)
         pose = PoseStamped(header=header, pose=matrix_to_pose(t_map_base))
@@ -578,6 +647,7 @@ class _SlamDiagnostics:
             "loop_closures": s.loops,
             "skipped": node.skipped,
             "dropped": node.dropped,
+            "odometry_fallbacks": node.odometry_fallbacks,
             "ba_runs": s.ba_runs,
             "ba_failures": s.ba_failures,
             "cpu_s": round(s.cpu_s, 4),
@@ -598,12 +668,3 @@ class _SlamDiagnostics:
         )
         header = Header(stamp=ns_to_time(node.get_clock().now_ns()), frame_id="")
         self._pub.publish(self._pub.msg_type(header=header, status=[status]))
-
-
-def _planar_pose(x: float, y: float, yaw: float) -> FloatArray:
-    """``T_map_base`` of a pose on the ground plane."""
-    out = np.eye(4)
-    c, s = np.cos(yaw), np.sin(yaw)
-    out[:2, :2] = [[c, -s], [s, c]]
-    out[0, 3], out[1, 3] = x, y
-    return out

@@ -373,13 +373,21 @@ class SlamSystem(SystemOutputs):
         )
 
     def _track_motion(self, frame: Frame, sw: Stopwatch) -> bool:
+        """Track on the local map from a predicted pose: odometry's, then constant velocity.
+
+        Wheel odometry slips in tight turns (its heading rate off by several degrees per
+        second on the car), so when its prediction finds too few matches the visual
+        constant-velocity model is tried before falling back to the reference keyframe.
+        """
         if self._last is None or self._last.t_cw is None:
             return False
+        velocity = self._velocity if self._velocity is not None else np.eye(4)
+        preds = [velocity @ self._last.t_cw]
         if self._odom_pred is not None:
-            pred = self._odom_pred
-        else:
-            velocity = self._velocity if self._velocity is not None else np.eye(4)
-            pred = velocity @ self._last.t_cw
+            preds.insert(0, self._odom_pred)
+        return any(self._track_from(frame, pred, sw) for pred in preds)
+
+    def _track_from(self, frame: Frame, pred: FloatArray, sw: Stopwatch) -> bool:
         pts = self._local_points[~self.map.bad[self._local_points]]
         r = self.config.search_radius
         mi, ki = search_by_projection(

@@ -1,0 +1,50 @@
+"""The SLAM node's parameters (:class:`visnav.slam.node.SlamNode`; see its module docstring)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from visnav.graph.param_dataclass import param
+from visnav.slam.config import SlamConfig
+
+__all__ = ["SlamParams"]
+
+
+@dataclass(frozen=True)
+class SlamParams:
+    """The SLAM node's parameters (read once at start; see the module docstring)."""
+
+    map_frame: str = param("map", description="the map frame SLAM publishes")
+    odom_frame: str = param("odom", description="odometry frame ('': publish map -> base)")
+    base_frame: str = param("base_link", description="the robot's base frame")
+    publish_tf: bool = param(True, description="publish map -> odom on /tf")
+    transform_tolerance: float = param(0.1, description="s the map -> odom stamp is post-dated")
+    tf_publish_period: float = param(0.05, description="s between map -> odom publications")
+    queue_size: int = param(10, description="synchroniser queue size")
+    approx_sync: bool = param(True, description="ApproximateTime (false: exact stamps)")
+    depth_scale: float = param(1000.0, description="16UC1 depth units per metre")
+    map_cloud_period: float = param(1.0, description="s between slam/map_points clouds")
+    path_publish_period: float = param(1.0, description="s of stamps between paths (0: every)")
+    dense_cloud_period: float = param(0.0, description="s between dense clouds (0: on request)")
+    dense_voxel: float = param(0.05, description="dense cloud voxel size (m)")
+    vocabulary: str = param("", description="a saved vocabulary .npz ('': built online)")
+    worker: str = param("inline", description="where SLAM runs: inline or process")
+    result_latency: float = param(0.0, description="s of stamp time a result is applied after")
+    set_initial_pose: bool = param(False, description="start at initial_pose.x/y/yaw")
+    max_frame_rate: float = param(0.0, description="Hz of processed frames (0: every frame)")
+    odometry_prior: bool = param(True, description="odom -> base predicts the camera motion")
+    force_3dof: bool = param(
+        False, description="map -> odom keeps the base level: x, y, yaw only (Reg/Force3DoF)"
+    )
+    odometry_wait: float = param(
+        0.1, description="s of clock time a frame waits for odom -> base at its stamp"
+    )
+    n_features: int = param(1000, description="ORB features per frame")
+    seed: int = param(0, description="random seed")
+    loop_closure: bool = param(True, description="detect and close loops")
+    local_ba: bool = param(True, description="local bundle adjustment")
+    icp_refinement: bool = param(True, description="dense ICP refinement of each pose")
+    depth_noise: float = param(SlamConfig.depth_noise, description="sigma_z / z^2 of the depth")
+    sensor: str = param("rgbd", description="rgbd or mono")
+    mono_scale: str = param("depth", description="what scales a mono map: depth or odometry")
+    diagnostic_period: float = param(1.0, description="s between /diagnostics (0: on changes)")
