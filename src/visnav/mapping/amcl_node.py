@@ -30,7 +30,6 @@ is logged as an error and latched on ``~/status``. There are no services
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -38,7 +37,7 @@ import numpy as np
 
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.graph.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+from visnav.graph.qos import qos_profile_latched, qos_profile_sensor_data
 from visnav.mapping.amcl import Amcl, AmclParams
 from visnav.mapping.amcl_models import select_beams
 from visnav.mapping.costmap_ros import MAP_QOS
@@ -53,24 +52,24 @@ from visnav.msgs.types import (
     Pose,
     PoseWithCovariance,
     PoseWithCovarianceStamped,
-    Quaternion,
     String,
     Transform,
     TransformStamped,
     Vector3,
 )
 from visnav.tf.buffer import Buffer
-from visnav.tf.errors import ExtrapolationException, TransformException
+from visnav.tf.errors import ExtrapolationException, InvalidArgumentException, TransformException
+from visnav.tf.initial_pose import InitialPoseParams
 from visnav.tf.ros import TransformBroadcaster, TransformListener
+from visnav.tf.transforms import quaternion_from_yaw, yaw_from_quaternion
 from visnav.tf.transforms import yaw_from_matrix as yaw_of
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["AmclNode", "AmclNodeParams", "InitialPoseParams"]
+__all__ = ["AmclNode", "AmclNodeParams"]
 
 _NS = 1_000_000_000
-_LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 @dataclass(frozen=True)
@@ -90,24 +89,6 @@ class AmclNodeParams:
     first_map_only: bool = param(False, description="ignore maps after the first")
 
 
-@dataclass(frozen=True)
-class InitialPoseParams:
-    """nav2_amcl's ``initial_pose.*``."""
-
-    x: float = param(0.0, description="initial x in the global frame (m)")
-    y: float = param(0.0, description="initial y in the global frame (m)")
-    z: float = param(0.0, description="initial z (unused, 2D)")
-    yaw: float = param(0.0, description="initial heading (rad)")
-
-
-def _quat(yaw: float) -> Quaternion:
-    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
-
-
-def _yaw(q: Quaternion) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
 class AmclNode(Node):
     """nav2_amcl on the visnav graph (module docstring).
 
@@ -125,10 +106,12 @@ class AmclNode(Node):
         self.tf_buffer = Buffer()
         self.tf_listener = TransformListener(self.tf_buffer, self)
         self._tf = TransformBroadcaster(self)
-        self._pose_pub = self.create_publisher(PoseWithCovarianceStamped, "amcl_pose", _LATCHED)
+        self._pose_pub = self.create_publisher(
+            PoseWithCovarianceStamped, "amcl_pose", qos_profile_latched
+        )
         self._pose_array = get_message_class("geometry_msgs/msg/PoseArray")
         self._cloud_pub = self.create_publisher(self._pose_array, "particlecloud", 1)
-        self._status_pub = self.create_publisher(String, "~/status", _LATCHED)
+        self._status_pub = self.create_publisher(String, "~/status", qos_profile_latched)
         self.create_subscription(OccupancyGrid, p.map_topic, self._on_map, MAP_QOS)
         self.create_subscription(LaserScan, p.scan_topic, self._on_scan, qos_profile_sensor_data)
         self.create_subscription(PoseWithCovarianceStamped, "initialpose", self._on_initial_pose, 1)
@@ -167,7 +150,15 @@ class AmclNode(Node):
     def _on_initial_pose(self, msg: PoseWithCovarianceStamped) -> None:
         frame = msg.header.frame_id or self.params.global_frame_id
         pose = msg.pose.pose
-        x, y, yaw = float(pose.position.x), float(pose.position.y), _yaw(pose.orientation)
+        try:
+            yaw = yaw_from_quaternion(pose.orientation)
+        except InvalidArgumentException as exc:
+            self.get_logger().error(
+                f"initialpose: pose.pose.orientation: {exc}; expected a unit quaternion "
+                "(x, y, z, w). Fix: send a rotation, e.g. w = 1 for heading 0; pose ignored"
+            )
+            return
+        x, y = float(pose.position.x), float(pose.position.y)
         if frame != self.params.global_frame_id:
             try:
                 T = self.tf_buffer.lookup_transform_matrix(self.params.global_frame_id, frame, 0)  # noqa: N806
@@ -284,7 +275,8 @@ class AmclNode(Node):
                 header=Header(stamp=ns_to_time(t), frame_id=p.global_frame_id),
                 child_frame_id=p.odom_frame_id,
                 transform=Transform(
-                    translation=Vector3(x=mo[0], y=mo[1], z=0.0), rotation=_quat(mo[2])
+                    translation=Vector3(x=mo[0], y=mo[1], z=0.0),
+                    rotation=quaternion_from_yaw(mo[2]),
                 ),
             )
         )
@@ -298,14 +290,17 @@ class AmclNode(Node):
         cov = np.zeros(36)
         cov[0], cov[1], cov[6], cov[7] = e.cov[0, 0], e.cov[0, 1], e.cov[1, 0], e.cov[1, 1]
         cov[35] = e.cov[2, 2]
-        pose = Pose(position=Point(x=e.x, y=e.y, z=0.0), orientation=_quat(e.yaw))
+        pose = Pose(position=Point(x=e.x, y=e.y, z=0.0), orientation=quaternion_from_yaw(e.yaw))
         self._pose_pub.publish(
             PoseWithCovarianceStamped(
                 header=header, pose=PoseWithCovariance(pose=pose, covariance=cov)
             )
         )
         poses = [
-            Pose(position=Point(x=float(x), y=float(y), z=0.0), orientation=_quat(float(a)))
+            Pose(
+                position=Point(x=float(x), y=float(y), z=0.0),
+                orientation=quaternion_from_yaw(float(a)),
+            )
             for x, y, a in f.poses
         ]
         self._cloud_pub.publish(self._pose_array(header=header, poses=poses))

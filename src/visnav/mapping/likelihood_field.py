@@ -23,6 +23,8 @@ import numpy as np
 from scipy import ndimage
 
 from visnav.mapping.errors import MappingError
+from visnav.tf.errors import InvalidArgumentException
+from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -126,8 +128,14 @@ class LikelihoodField:
                 "whole grid?)"
             )
             raise LikelihoodFieldError(text)
-        q = info.origin.orientation  # x, y, z, w (ROS order)
-        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        try:
+            yaw = yaw_from_quaternion(info.origin.orientation)
+        except InvalidArgumentException as exc:
+            text = (
+                f"map: OccupancyGrid info.origin.orientation: {exc}; expected a unit "
+                "quaternion (x, y, z, w). Fix: give the map origin a rotation (w = 1 for none)"
+            )
+            raise LikelihoodFieldError(text) from None
         origin = (float(info.origin.position.x), float(info.origin.position.y), yaw)
         return cls(data.reshape(height, width), float(info.resolution), origin, max_dist=max_dist)
 
