@@ -24,6 +24,7 @@ from visnav.bridge.master_api import MasterClient
 
 pytestmark = [
     pytest.mark.slow,
+    pytest.mark.ci,
     pytest.mark.skipif(
         shutil.which("roscore") is None or shutil.which("rostopic") is None,
         reason="ROS 1 tools missing: apt install ros-core python3-rostopic python3-rosnode",
@@ -168,7 +169,6 @@ SIM_TOPICS = {
 }
 
 
-@pytest.mark.ci
 @pytest.mark.timeout(600)
 def test_sim_seen_by_real_ros1_tools(roscore: Ros1Env) -> None:
     env = roscore
@@ -300,7 +300,6 @@ with Context() as ctx:
 """
 
 
-@pytest.mark.ci
 def test_served_master_rosnode_and_kill(ros1: Ros1Env) -> None:
     env = ros1
     env.start([sys.executable, "-c", _TALKER], "talker")

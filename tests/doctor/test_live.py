@@ -61,6 +61,7 @@ def test_doctor_live_listens_for_the_duration(domain: int) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.parametrize(
     ("world", "robot", "fixed_frame", "image_topic"),
     [
@@ -90,6 +91,7 @@ def test_simulated_robots_have_no_error(
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_simulated_car_with_the_depth_frame_on_the_camera_link() -> None:
     """The rotated-cloud bug injected into a simulated run: depth <frame_name> is the link."""
     from visnav.description.robots import car_description_path

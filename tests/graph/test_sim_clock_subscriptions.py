@@ -100,6 +100,7 @@ def test_clock_from_another_process(start_script: Any) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_clock_from_another_process_every_case(start_script: Any) -> None:
     """Every combination against one real /clock process (Zenoh), one context."""
     start_script(SCRIPTS / "clock_pub.py", "120")

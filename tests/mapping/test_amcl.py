@@ -97,6 +97,7 @@ def _run(
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_converges_from_an_offset_initial_pose(field: LikelihoodField, drive: list) -> None:
     amcl = Amcl(field, AmclParams(seed=1, **CAR))
     x, y, yaw = drive[0][0]
@@ -112,6 +113,7 @@ def test_converges_from_an_offset_initial_pose(field: LikelihoodField, drive: li
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_nav2_defaults_also_localise(field: LikelihoodField, drive: list) -> None:
     amcl = Amcl(field, AmclParams(seed=2))
     amcl.set_initial_pose(*drive[0][0])
@@ -143,6 +145,7 @@ def test_wrong_start_inside_the_map_is_refused(field: LikelihoodField, short_dri
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_kidnapped_after_localising_is_lost(field: LikelihoodField, drive: list) -> None:
     amcl = Amcl(field, AmclParams(seed=1, **CAR))
     amcl.set_initial_pose(*drive[0][0])
@@ -159,6 +162,7 @@ def test_kidnapped_after_localising_is_lost(field: LikelihoodField, drive: list)
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_same_seed_same_particles(field: LikelihoodField, drive: list) -> None:
     runs = []
     for seed in (5, 5, 6):
@@ -171,6 +175,7 @@ def test_same_seed_same_particles(field: LikelihoodField, drive: list) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_global_localisation_with_recovery(field: LikelihoodField, drive: list) -> None:
     params = AmclParams(
         seed=3, max_particles=5000, recovery_alpha_slow=0.001, recovery_alpha_fast=0.1, **CAR

@@ -14,7 +14,7 @@ import pytest
 
 import visnav
 from visnav.graph import Context, Node
-from visnav.graph.qos import DurabilityPolicy, QoSProfile
+from visnav.graph.qos import qos_profile_latched
 from visnav.mapping.amcl_node import AmclNode
 from visnav.mapping.map_io import MapMetadata, OccupancyMap, save_map
 from visnav.msgs.time import ns_to_time
@@ -33,7 +33,7 @@ from visnav.msgs.types import (
 from visnav.node_registry import resolve_node_class
 from visnav.tf.ros import StaticTransformBroadcaster, TransformBroadcaster
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = qos_profile_latched
 ANGLES = np.linspace(-0.76, 0.76, 160)
 
 
@@ -104,6 +104,7 @@ def _map_odom(tfs: list[TFMessage]) -> list[TransformStamped]:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_amcl_node_localises_and_publishes(amcl_world: SimpleNamespace, domain: int) -> None:
     assert resolve_node_class("amcl") is AmclNode
     start = amcl_world.square_drive(1)[0]
@@ -122,6 +123,7 @@ def test_amcl_node_localises_and_publishes(amcl_world: SimpleNamespace, domain: 
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_amcl_node_outside_the_map_gives_no_map_to_odom(
     amcl_world: SimpleNamespace, domain: int
 ) -> None:

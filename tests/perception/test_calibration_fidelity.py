@@ -259,6 +259,7 @@ def test_recovers_the_seed_camera_from_simulated_views(sim: Any, tmp_path: Path)
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_identical_views_refused_without_writing_k(sim: Any, tmp_path: Path) -> None:
     _, render = sim
     position, rotation = board_poses(1, seed=5)[0]
@@ -271,6 +272,7 @@ def test_identical_views_refused_without_writing_k(sim: Any, tmp_path: Path) -> 
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_fronto_parallel_views_refused(sim: Any, tmp_path: Path) -> None:
     _, render = sim
     # Board tiles towards the camera (-x), board x along image right, y along image up.
@@ -286,6 +288,7 @@ def test_fronto_parallel_views_refused(sim: Any, tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_large_image_searched_downscaled_then_refined_at_full_size(sim: Any) -> None:
     _, render = sim
     gray = cv2.cvtColor(render(*board_poses(1, seed=2)[0]), cv2.COLOR_BGR2GRAY)

@@ -358,6 +358,7 @@ def test_roslaunch_usb_cam_node_maps_to_the_driver(tmp_path: Path, video: Path) 
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.timeout(120)
 def test_cli_publishes_a_video_file_to_another_process(domain: int, video: Path) -> None:
     import subprocess

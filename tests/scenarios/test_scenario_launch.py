@@ -130,6 +130,7 @@ def test_visnav_launch_gives_the_same_run_as_visnav_run(tmp_path: Path, domain: 
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.timeout(600)
 def test_one_line_moves_the_observer_to_its_own_process(tmp_path: Path, domain: int) -> None:
     text = launch_file("car").read_text()

@@ -12,6 +12,7 @@ from visnav.scenarios.sweep_check import run_differences
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.timeout(1200)  # two runs; minutes on a loaded machine
 def test_the_same_seed_gives_the_same_run_with_slam_in_the_loop(
     domain: int, tmp_path: Path

@@ -180,6 +180,7 @@ def test_featureless_start_waits_with_a_warning(short_sequence: Sequence) -> Non
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_loop_closure_reduces_drift(loop_sequence: Sequence) -> None:
     gt = _gt(loop_sequence)
     open_loop = _run(

@@ -109,6 +109,7 @@ def _reports(procs: Procs, name: str) -> list[dict[str, Any]]:
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.timeout(SECONDS + 600)
 def test_soak(procs: Procs, tmp_path: Path) -> None:
     from visnav.bag import bag_info, read_bag

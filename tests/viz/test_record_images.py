@@ -16,6 +16,7 @@ from visnav.viz import feed_bag
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.timeout(600)
 def test_record_images_keeps_cameras_and_the_viewer_shows_them(
     tmp_path: Path, session: Any
