@@ -9,8 +9,9 @@ from hypothesis import strategies as st
 
 from visnav.slam.features import Frame
 from visnav.slam.geometry import se3_exp
-from visnav.slam.matching import search_by_projection, search_by_projection_numpy
+from visnav.slam.matching import search_by_projection
 
+from ._projection_reference import search_by_projection_numpy
 from .conftest import SMALL
 
 
