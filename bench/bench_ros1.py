@@ -22,7 +22,11 @@ python3-rospy, python3-sensor-msgs). Starts its own ``roscore -p PORT`` and VISN
   processes used in it (cores: publisher, bridge, rospy subscriber, each also as CPU ms
   per image delivered): on a loaded machine the scheduler's shares decide the rates, and
   these say where the CPU went. The last lines give the median CPU per image delivered
-  of the bridge and of all processes of each path.
+  of the bridge and of all processes of each path, each path's publisher CPU (cores: both
+  are busy loops when flooding, a fair contest needs them comparable) and the frames the
+  rospy subscriber read per image it delivered (it reads whatever its socket holds and
+  deserializes only the newest ``queue_size`` = 2 of each read: frames sent further ahead
+  of it cost it a read and two copies each for nothing).
 
 ``--flood-only`` runs only the both-flooding bulk runs. Prints medians over repeats.
 """
@@ -48,8 +52,26 @@ WIDTH, HEIGHT = 640, 480
 
 ROSPY_SUB = """
 import json, sys, time, rospy
+import rospy.impl.tcpros_base as tcpros_base
 from sensor_msgs.msg import Image
 topic, duration, warmup = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+frames = [0, False]  # complete frames rospy read off the socket in the window (counting?)
+_deserialize = tcpros_base.deserialize_messages
+def deserialize_messages(b, msg_queue, data_class, queue_size=None, max_msgs=None, start=0):
+    # rospy reads whatever the socket holds and deserializes only the newest queue_size
+    # frames of it: count the complete frames it read (their length prefixes), then let it
+    if frames[1]:
+        pos, end = start, b.tell()
+        while end - pos >= 4:
+            b.seek(pos)
+            size = int.from_bytes(b.read(4), "little")
+            if end - pos - 4 < size:
+                break
+            pos += 4 + size
+            frames[0] += 1
+        b.seek(end)
+    _deserialize(b, msg_queue, data_class, queue_size=queue_size, max_msgs=max_msgs, start=start)
+tcpros_base.deserialize_messages = deserialize_messages
 rospy.init_node("bench_sub", anonymous=True, disable_signals=True)
 lat, count, t0 = [], [0], [None]
 def cb(msg):
@@ -69,10 +91,13 @@ if t0[0] is None:
     duration = warmup = 0.0
 time.sleep(max(0.0, t0[0] + warmup - time.time()) if t0[0] else 0.0)
 print("counting", flush=True)
+frames[1] = True
 cpu0 = time.process_time()
 time.sleep(duration)
 cpu = time.process_time() - cpu0
-print(json.dumps({"count": count[0], "seconds": duration, "lat_ms": lat, "cpu_s": cpu}), flush=True)
+frames[1] = False
+result = {"count": count[0], "seconds": duration, "lat_ms": lat, "cpu_s": cpu, "frames": frames[0]}
+print(json.dumps(result), flush=True)
 rospy.signal_shutdown("done")
 """
 
@@ -258,7 +283,8 @@ def _cores(res: dict[str, Any], seconds: float) -> str:
         if k in cores
     ]
     sent = "" if res["sent"] != res["sent"] else f", sent {res['sent']:.0f}/s"
-    return f"offered {res['offered']:.0f}/s{sent}, cores: " + ", ".join(parts)
+    read = f", sub read {res['frames'] / max(res['count'], 1):.2f} frames/img"
+    return f"offered {res['offered']:.0f}/s{sent}{read}, cores: " + ", ".join(parts)
 
 
 def _bulk(procs: Procs, i: int, rate: float, args: argparse.Namespace, bridge: int) -> str:
@@ -273,6 +299,11 @@ def _bulk(procs: Procs, i: int, rate: float, args: argparse.Namespace, bridge: i
     ref_per = 1000.0 * args.duration / max(ref["count"], 1)
     args.cpu_ms[key].append(
         (sum(vis["cores"].values()) * per, sum(ref["cores"].values()) * ref_per)
+    )
+    args.pub_cores[key].append((vis["cores"]["pub"], ref["cores"]["pub"]))
+    args.sub_ms[key].append((vis["cores"]["sub"] * per, ref["cores"]["sub"] * ref_per))
+    args.frames[key].append(
+        (vis["frames"] / max(vis["count"], 1), ref["frames"] / max(ref["count"], 1))
     )
     return (
         f"  {'offered ' + str(int(rate)) + ' Hz' if rate else 'flooding'}: visnav->rospy "
@@ -293,6 +324,9 @@ def main() -> None:
     args.rates = {"flood": [], "offered": []}
     args.bridge_ms = {"flood": [], "offered": []}
     args.cpu_ms = {"flood": [], "offered": []}
+    args.pub_cores = {"flood": [], "offered": []}
+    args.sub_ms = {"flood": [], "offered": []}
+    args.frames = {"flood": [], "offered": []}
     print("load average (1, 5, 15 min) at the start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     tmp = Path(tempfile.mkdtemp(prefix="bench_ros1_"))
     port = _free_port()
@@ -351,6 +385,15 @@ def main() -> None:
                 f"CPU per image delivered {med(args.bridge_ms[key]):.2f} ms, all processes "
                 f"{med(c[0] for c in args.cpu_ms[key]):.2f} ms against "
                 f"{med(c[1] for c in args.cpu_ms[key]):.2f} ms for rospy -> rospy (medians)"
+            )
+            print(
+                f"  {what}, visnav path / rospy path (medians): publisher "
+                f"{med(c[0] for c in args.pub_cores[key]):.2f} / "
+                f"{med(c[1] for c in args.pub_cores[key]):.2f} cores; rospy subscriber "
+                f"{med(c[0] for c in args.sub_ms[key]):.2f} / "
+                f"{med(c[1] for c in args.sub_ms[key]):.2f} ms CPU per image, reading "
+                f"{med(c[0] for c in args.frames[key]):.2f} / "
+                f"{med(c[1] for c in args.frames[key]):.2f} frames per image it delivers"
             )
         print(
             "load average (1, 5, 15 min) at the end: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())

@@ -260,3 +260,19 @@ def test_fuzz_param_keys_resolve_to_absolute(caller: str, key: str) -> None:
     out = resolve_param_key("/" + caller.strip("/"), key)
     assert out.startswith("/")
     assert "//" not in out
+
+
+def test_subscriber_connections_keep_a_small_send_buffer(
+    make_node: Callable[..., Ros1Node],
+) -> None:
+    """At most about one image waits in the kernel for a subscriber (SEND_BUFFER_BYTES)."""
+    from visnav.bridge.ros1_node import SEND_BUFFER_BYTES
+
+    talker, listener = make_node("talker"), make_node("listener")
+    talker.advertise("/chatter", STRING)
+    listener.subscribe("/chatter", STRING, lambda _raw: None)
+    assert _wait(lambda: talker.subscriber_count("/chatter") == 1)
+    conn = talker._pubs["/chatter"].conns[0]
+    size = conn.sock.getsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF)
+    # Linux doubles what is asked for (bookkeeping); the autotuned default starts at 16 KiB
+    assert SEND_BUFFER_BYTES <= size <= 2 * SEND_BUFFER_BYTES

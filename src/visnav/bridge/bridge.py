@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from visnav.bridge.bytetail import head_plan, split_cdr_to_ros1
 from visnav.bridge.errors import BridgeError, TcprosError, UnconvertibleTypeError
 from visnav.bridge.ros1_node import Ros1Node
 from visnav.bridge.typemap import Ros1Type, cdr_to_ros1, ros1_to_cdr, ros1_type
@@ -81,6 +82,7 @@ class _Out:
         self.latch = latch
         self.serializer = CdrSerializer(rtype.ros2_name)
         self.convert_lock = threading.Lock()  # conversions may run on connection threads
+        self.plan = head_plan(rtype)  # byte-tail types: no deserialization when forwarding
         self.sub: Subscription[Any] | None = None
         self.count = 0
 
@@ -271,9 +273,19 @@ class Ros1Bridge:
     def _convert(
         self, out: _Out, data: SerializedMessage
     ) -> tuple[memoryview, memoryview | None] | None:
-        """A raw message's ROS 1 bytes (see :meth:`_to_ros1`), or None if it does not convert."""
+        """A raw message's ROS 1 bytes as ``(head, tail)``, or None if it does not convert.
+
+        The one copy is out of the transport (:meth:`SerializedMessage.to_bytes`); a type
+        with a :func:`~visnav.bridge.bytetail.head_plan` then has the fields before its
+        tail rewritten byte by byte and its tail sent from those bytes; any other (or a
+        big-endian message) is deserialized and converted as in :meth:`_to_ros1`.
+        """
         try:
-            msg = data.deserialize()  # its own buffer: its bytes are sent without a copy
+            cdr = data.to_bytes()  # its own buffer: its bytes are sent without a copy
+            if out.plan is not None and cdr[1:2] == b"\x01":
+                head, tail = split_cdr_to_ros1(cdr, out.plan)
+                return memoryview(head), tail
+            msg = data.deserialize()
             with out.convert_lock:
                 return self._to_ros1(out, msg, copy=False)
         except (TcprosError, MessageError) as exc:

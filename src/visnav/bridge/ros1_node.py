@@ -33,7 +33,14 @@ from visnav.bridge.master_api import MasterClient, bind_address
 from visnav.bridge.tcpros import encode_header, read_header
 from visnav.bridge.typemap import Ros1Type, rosout_type
 
-__all__ = ["PACE_AHEAD", "PACE_RESUME", "Ros1Node", "ThreadingXmlRpcServer", "message_parts"]
+__all__ = [
+    "PACE_AHEAD",
+    "PACE_RESUME",
+    "SEND_BUFFER_BYTES",
+    "Ros1Node",
+    "ThreadingXmlRpcServer",
+    "message_parts",
+]
 
 _log = logging.getLogger("visnav.bridge")
 
@@ -51,6 +58,18 @@ this many messages queued or fewer (:meth:`Ros1Node.can_resume`): each pause the
 ``PACE_AHEAD - PACE_RESUME`` messages through, not one, so a flooded topic pauses and resumes
 (and tells its visnav publishers so) a third as often, while every queue keeps at least this
 many messages to send."""
+
+
+SEND_BUFFER_BYTES = 512 * 1024
+"""``SO_SNDBUF`` asked for on each connection to a ROS 1 subscriber (Linux doubles it: 1 MiB,
+about one 640x480 rgb8 image). The kernel's send buffer bounds how many bytes are on their way
+to a subscriber; a message not yet in the socket stays in the connection's drop-oldest queue,
+where a newer one replaces it for free. With the default (autotuned up to 4 MiB) a flooding
+topic had ~4 images in the send buffer and ~3 in the subscriber's receive queue, and a rospy
+subscriber, which keeps the newest ``queue_size`` of each read, read 2.2 images per image it
+handed to its callback (1.05 with this size) while the bridge converted and sent twice the
+images it needed to (``bench/bench_ros1.py``, BENCHMARKS.md). A remote subscriber over a
+network gets at most this much per round trip (1 MiB / 10 ms: 100 MiB/s)."""
 
 
 def message_parts(
@@ -425,6 +444,7 @@ class Ros1Node:
             return
         if header.get("tcp_nodelay") == "1":
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
         try:
             sock.sendall(
                 encode_header(
