@@ -22,11 +22,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from visnav.slam._ba_kernels import levenberg_marquardt
 from visnav.slam.camera import CameraIntrinsics
-from visnav.slam.geometry import CHI2_MONO, CHI2_STEREO, inverse, transform
+from visnav.slam.geometry import CHI2_MONO, CHI2_STEREO, inverse, orthonormalize, transform
 from visnav.slam.slam_map import SlamMap
 
 __all__ = [
+    "MAX_DENSE_KEYFRAMES",
     "BaResult",
     "LoopConstraint",
     "apply_point_corrections",
@@ -115,6 +117,10 @@ class _Models:
             )
 
 
+MAX_DENSE_KEYFRAMES = 60
+"""Free poses up to which bundle adjustment solves the dense reduced system (compiled)."""
+
+
 def bundle_adjustment(
     slam_map: SlamMap,
     cam: CameraIntrinsics,
@@ -124,8 +130,13 @@ def bundle_adjustment(
     fixed_ids: list[int] | None = None,
     iterations: int = 10,
     min_observations: int = 1,
+    max_dense_keyframes: int | None = None,
 ) -> BaResult:
     """Optimise the poses of ``keyframe_ids`` and the points they observe, in place.
+
+    Up to ``max_dense_keyframes`` free poses (every local window) the compiled solver of
+    :mod:`visnav.slam._ba_kernels` runs (Schur complement, dense reduced system); larger
+    problems (global BA over a long run) go to gtsam's sparse elimination.
 
     Args:
         slam_map: the map (poses and points are updated, outlier observations erased).
@@ -136,12 +147,13 @@ def bundle_adjustment(
             observes one of the points; keyframe 0 is always held).
         iterations: Levenberg-Marquardt iterations.
         min_observations: points with fewer observations in the problem are left out.
+        max_dense_keyframes: the most free poses the compiled solver takes (None:
+            :data:`MAX_DENSE_KEYFRAMES`).
 
     Returns:
         Sizes, outliers removed and the error before/after; a solver failure is in
         ``error`` (the map is then unchanged).
     """
-    gtsam = _gtsam()
     local = sorted({k for k in keyframe_ids if not slam_map.keyframes[k].bad})
     points = slam_map.local_points(local)
     obs_list: list[tuple[int, int, int]] = []  # (kf, kp, point)
@@ -161,36 +173,114 @@ def bundle_adjustment(
         fixed.add(min(involved))
     if not obs_list:
         return BaResult(len(local), len(fixed), 0, 0, 0, 0.0, 0.0)
+    problem = _Problem(slam_map, sorted(involved), fixed, obs_list)
+    sizes = (len(local), len(fixed), len(problem.points), len(obs_list))
+    limit = MAX_DENSE_KEYFRAMES if max_dense_keyframes is None else max_dense_keyframes
+    if len(involved - fixed) <= limit:
+        before, after, error = _solve_compiled(problem, cam, inv_sigma2_levels, iterations)
+    else:
+        before, after, error = _solve_gtsam(problem, cam, inv_sigma2_levels, iterations)
+    if error:
+        return BaResult(*sizes, 0, before, before, error)
+    outliers = _erase_outliers(slam_map, cam, obs_list)
+    slam_map.update_point_normals(problem.points)
+    return BaResult(*sizes, outliers, before, after)
+
+
+class _Problem:
+    """A bundle adjustment's variables and observations as arrays (map indices kept)."""
+
+    def __init__(
+        self,
+        slam_map: SlamMap,
+        keyframes: list[int],
+        fixed: set[int],
+        obs_list: list[tuple[int, int, int]],
+    ) -> None:
+        self.map = slam_map
+        self.keyframes = np.asarray(keyframes, dtype=np.int64)
+        self.fixed = np.asarray([k in fixed for k in keyframes], dtype=bool)
+        arr = np.asarray(obs_list, dtype=np.int64)
+        self.points, self.obs_pt = np.unique(arr[:, 2], return_inverse=True)
+        self.obs_kf = np.searchsorted(self.keyframes, arr[:, 0])
+        n = len(arr)
+        self.uv = np.empty((n, 2))
+        self.u_right = np.empty(n)
+        self.octave = np.empty(n, dtype=np.int64)
+        for k in np.unique(arr[:, 0]).tolist():  # one gather per keyframe
+            rows = np.flatnonzero(arr[:, 0] == k)
+            f = slam_map.keyframes[k].frame
+            kp = arr[rows, 1]
+            self.uv[rows] = f.uv[kp]
+            self.u_right[rows] = f.u_right[kp]
+            self.octave[rows] = f.octave[kp]
+        self.stereo = np.isfinite(self.u_right)
+
+    def t_cw(self) -> FloatArray:
+        """(K, 4, 4) world -> camera poses of the keyframes."""
+        return np.stack([self.map.keyframes[k].t_cw for k in self.keyframes.tolist()])
+
+    def store(self, t_cw: FloatArray, positions: FloatArray) -> None:
+        """Write optimised free poses and every point back into the map."""
+        for i in np.flatnonzero(~self.fixed).tolist():
+            self.map.keyframes[int(self.keyframes[i])].t_cw = orthonormalize(t_cw[i])
+        self.map.positions[self.points] = positions
+
+
+def _solve_compiled(
+    problem: _Problem, cam: CameraIntrinsics, inv_sigma2_levels: FloatArray, iterations: int
+) -> tuple[float, float, str]:
+    pr = problem
+    meas = np.column_stack([pr.uv, np.where(pr.stereo, pr.u_right, 0.0)])
+    info = np.asarray(inv_sigma2_levels, dtype=np.float64)[pr.octave]
+    camv = np.array([cam.fx, cam.fy, cam.cx, cam.cy, cam.bf])
+    t_cw, positions, before, after = levenberg_marquardt(
+        pr.t_cw(),
+        pr.map.positions[pr.points].astype(np.float64),
+        pr.obs_kf,
+        pr.obs_pt,
+        meas,
+        pr.stereo,
+        info,
+        camv,
+        float(np.sqrt(CHI2_MONO)),
+        float(np.sqrt(CHI2_STEREO)),
+        pr.fixed,
+        int(iterations),
+    )
+    if not (np.isfinite(after) and np.isfinite(t_cw).all() and np.isfinite(positions).all()):
+        return before, before, f"bundle adjustment of {len(pr.keyframes)} keyframes diverged"
+    pr.store(t_cw, positions)
+    return before, after, ""  # ba_cost: half the robust sum of squares, as gtsam's error
+
+
+def _solve_gtsam(
+    problem: _Problem, cam: CameraIntrinsics, inv_sigma2_levels: FloatArray, iterations: int
+) -> tuple[float, float, str]:
+    gtsam = _gtsam()
+    pr = problem
     graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
     models = _Models(gtsam, inv_sigma2_levels)
     k_mono = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
     k_stereo = gtsam.Cal3_S2Stereo(cam.fx, cam.fy, 0.0, cam.cx, cam.cy, cam.baseline)
-    for k in sorted(involved):
-        pose = gtsam.Pose3(slam_map.keyframes[k].t_wc)
-        values.insert(k, pose)
-        if k in fixed:
-            graph.add(_hold(gtsam, k, pose))
-    used_points = sorted({p for _, _, p in obs_list})
-    for p in used_points:
-        values.insert(_POINT_KEY + p, gtsam.Point3(*slam_map.positions[p]))
-    for k, kp, p in obs_list:
-        f = slam_map.keyframes[k].frame
-        lvl = int(f.octave[kp])
-        u, v = float(f.uv[kp, 0]), float(f.uv[kp, 1])
-        ur = float(f.u_right[kp])
-        if np.isfinite(ur):
-            graph.add(
-                gtsam.GenericStereoFactor3D(
-                    gtsam.StereoPoint2(u, ur, v), models.stereo[lvl], k, _POINT_KEY + p, k_stereo
-                )
-            )
+    for i, t_cw in enumerate(pr.t_cw()):
+        pose = gtsam.Pose3(inverse(t_cw))
+        values.insert(i, pose)
+        if pr.fixed[i]:
+            graph.add(_hold(gtsam, i, pose))
+    for j, p in enumerate(pr.map.positions[pr.points]):
+        values.insert(_POINT_KEY + j, gtsam.Point3(*p))
+    for o in range(len(pr.obs_kf)):
+        k, key = int(pr.obs_kf[o]), _POINT_KEY + int(pr.obs_pt[o])
+        lvl = int(pr.octave[o])
+        u, v = float(pr.uv[o, 0]), float(pr.uv[o, 1])
+        if pr.stereo[o]:
+            meas = gtsam.StereoPoint2(u, float(pr.u_right[o]), v)
+            graph.add(gtsam.GenericStereoFactor3D(meas, models.stereo[lvl], k, key, k_stereo))
         else:
-            graph.add(
-                gtsam.GenericProjectionFactorCal3_S2(
-                    np.array([u, v]), models.mono[lvl], k, _POINT_KEY + p, k_mono
-                )
-            )
+            meas2 = np.array([u, v])
+            graph.add(gtsam.GenericProjectionFactorCal3_S2(meas2, models.mono[lvl], k, key, k_mono))
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(int(iterations))
     params.setVerbosityLM("SILENT")
@@ -198,20 +288,16 @@ def bundle_adjustment(
     try:
         result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
     except RuntimeError as exc:
-        text = f"bundle adjustment of {len(local)} keyframes failed in gtsam: {exc}"
-        return BaResult(
-            len(local), len(fixed), len(used_points), len(obs_list), 0, before, before, text
+        return (
+            before,
+            before,
+            f"bundle adjustment of {len(pr.keyframes)} keyframes failed in gtsam: {exc}",
         )
     after = float(graph.error(result))
-    for k in sorted(involved - fixed):
-        slam_map.keyframes[k].t_cw = inverse(result.atPose3(k).matrix())
-    for p in used_points:
-        slam_map.positions[p] = result.atPoint3(_POINT_KEY + p)
-    outliers = _erase_outliers(slam_map, cam, obs_list)
-    slam_map.update_point_normals(np.asarray(used_points, dtype=np.int64))
-    return BaResult(
-        len(local), len(fixed), len(used_points), len(obs_list), outliers, before, after
-    )
+    t_cw = np.stack([inverse(result.atPose3(i).matrix()) for i in range(len(pr.keyframes))])
+    positions = np.stack([result.atPoint3(_POINT_KEY + j) for j in range(len(pr.points))])
+    pr.store(t_cw, positions)
+    return before, after, ""
 
 
 def _erase_outliers(
