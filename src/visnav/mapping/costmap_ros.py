@@ -30,6 +30,13 @@ types are looked up in its registry :data:`~visnav.mapping.costmap_layers.COSTMA
 A caller (the navigator) may pass other defaults; explicit parameter overrides win.
 Sensor topics are subscribed best-effort (``qos_profile_sensor_data``), the map
 reliable and transient local (it is latched).
+
+A static layer whose map frame is not the costmap's global frame (a ``map`` in the
+rolling local costmap in ``odom``) is placed through TF at every update, as costmap_2d's
+rolling static layer looks ``map -> global_frame`` up in each ``updateCosts``: a
+localizer (SLAM, AMCL) moves ``map -> odom`` all the time. A map that arrives before its
+transform exists (map_server latches it once, before AMCL publishes) is kept and placed
+at the first update that has the transform.
 """
 
 from __future__ import annotations
@@ -114,6 +121,8 @@ class CostmapROS:
         )
         for plugin in c.plugins:
             self.layered.add_layer(make_layer(self, str(plugin), self._defaults))
+        self._maps: dict[str, tuple[StaticLayer, OccupancyGrid | None, str]] = {}
+        """Static layers by name: the layer, a map waiting for its transform, its frame."""
         self._pub: Publisher[OccupancyGrid] | None = None
         if self.publish_frequency > 0:
             self._pub = node.create_publisher(OccupancyGrid, f"~/{name}/costmap", 1)
@@ -145,22 +154,40 @@ class CostmapROS:
 
     # ------------------------------------------------------------------ callbacks
     def _on_map(self, layer: StaticLayer, msg: OccupancyGrid) -> None:
-        transform = None
         frame = msg.header.frame_id
+        self._maps[layer.name] = (layer, msg, frame)
+        self._place_map(layer.name)
+
+    def _map_transform(self, frame: str) -> tuple[float, float, float] | None:
+        """Pose ``(x, y, yaw)`` of ``frame`` in the global frame (None: no transform yet)."""
+        try:
+            T = self.tf.lookup_transform_matrix(self.global_frame, frame, 0)  # noqa: N806
+        except TransformException as exc:
+            self.node.get_logger().warning(
+                f"{self.name}: map in frame '{frame}' has no transform to "
+                f"'{self.global_frame}' yet ({exc}); its static layer waits for it",
+                throttle_duration_sec=5.0,
+            )
+            return None
+        return float(T[0, 3]), float(T[1, 3]), yaw_from_matrix(T)
+
+    def _place_map(self, name: str) -> None:
+        """Hand a waiting map to its layer, or move a placed one to the current transform."""
+        layer, msg, frame = self._maps[name]
+        transform = None
         if frame and frame != self.global_frame:
-            try:
-                T = self.tf.lookup_transform_matrix(self.global_frame, frame, 0)  # noqa: N806
-            except TransformException as exc:
-                self.node.get_logger().warning(
-                    f"{self.name}: map in frame '{frame}' has no transform to "
-                    f"'{self.global_frame}': {exc}"
-                )
+            transform = self._map_transform(frame)
+            if transform is None:
                 return
-            transform = (float(T[0, 3]), float(T[1, 3]), yaw_from_matrix(T))
+        if msg is None:
+            if transform is not None:
+                layer.set_map_transform(*transform)
+            return
         try:
             layer.set_map(msg, transform=transform)
         except CostmapError as exc:
             self.node.get_logger().error(str(exc))
+        self._maps[name] = (layer, None, frame)
 
     def _on_observation(
         self, layer: ObstacleLayer, source: str, msg: LaserScan | PointCloud2
@@ -202,6 +229,8 @@ class CostmapROS:
         pose = self.get_robot_pose()
         if pose is None:
             return
+        for name in self._maps:
+            self._place_map(name)
         self.layered.update_map(*pose, now_ns=self.node.get_clock().now_ns())
 
     def publish(self) -> None:

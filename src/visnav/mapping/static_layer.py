@@ -17,7 +17,7 @@ in the map through the 2D transform ``T_global_map`` given with the map.
 
 Difference: costmap_2d's rolling static layer asks TF per update; here the caller
 passes the transform with :meth:`StaticLayer.set_map` or :meth:`set_map_transform`
-(the node does the TF lookup).
+(:class:`~visnav.mapping.costmap_ros.CostmapROS` looks it up before every update).
 """
 
 from __future__ import annotations
@@ -124,9 +124,15 @@ class StaticLayer(CostmapLayer):
         return self.map is not None
 
     def set_map_transform(self, x: float, y: float, yaw: float) -> None:
-        """Set the pose of the map frame in the costmap's global frame (2D)."""
+        """Set the pose of the map frame in the costmap's global frame (2D).
+
+        A changed pose repaints the map's extent at the next update.
+        """
         c, s = math.cos(yaw), math.sin(yaw)
-        self.T_global_map = np.array([[c, -s, x], [s, c, y], [0.0, 0.0, 1.0]])
+        new = np.array([[c, -s, x], [s, c, y], [0.0, 0.0, 1.0]])
+        if self.map is not None and not np.array_equal(new, self.T_global_map):
+            self._has_updated_data = True
+        self.T_global_map = new
 
     def set_map(
         self, msg: OccupancyGrid, *, transform: tuple[float, float, float] | None = None

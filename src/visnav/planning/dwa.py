@@ -15,7 +15,10 @@ Every control cycle (``controller_frequency``, 20 Hz):
 
    * obstacles (``occdist_scale`` 0.01): the largest footprint cost along the
      trajectory; a lethal / inscribed / unknown cell under a circular robot, a lethal or
-     unknown cell on a polygon's outline, or leaving the map, is a collision;
+     unknown cell on a polygon's outline, or leaving the map, is a collision; for a
+     circular robot a point in an inscribed cell collides only when the point itself
+     lies closer to the nearest lethal cell centre than the inscribed radius (or than
+     the robot does, when the robot is closer already: it may turn or move away);
    * path (``path_distance_bias`` 32 x resolution) and goal (``goal_distance_bias`` 24 x
      resolution): 4-connected cell distance from the trajectory's end to the plan
      cells and to the local goal (the last plan pose in the local costmap), through
@@ -39,7 +42,13 @@ Every control cycle (``controller_frequency``, 20 Hz):
 Differences: a differential-drive base only (dwa_local_planner's ``max_vel_y`` /
 ``min_vel_y`` / ``acc_lim_y`` / ``vy_samples``, 0.1 / -0.1 / 2.5 / 10 for a holonomic PR2,
 are not parameters here: no ``vy`` is sampled); a circular robot is checked as an exact
-circle (centre cell inscribed or worse) instead of a 16-gon's outline; the stop and rotate
+circle instead of a 16-gon's outline: a point collides in a lethal cell, and in an
+inscribed cell when it lies within the inscribed radius of a lethal cell's centre (ROS's
+outline check lets the centre into the inscribed band; checking only the cost of the
+point's cell, as visnav did before session 6, quantises the radius by up to a cell
+diagonal both ways, and a car stopped 0.36-0.37 m from a corner, at the edge of the band
+where DWA's rollouts at rest leave it, found every rollout "colliding" and waited 17 s
+for the recovery behaviours: seed 5 with the map in the local costmap); the stop and rotate
 commands are checked for collisions only (dwa scores them with every critic); the plan is
 densified to the costmap resolution once per cycle (``adjustPlanResolution``); a new plan
 to the same goal keeps the xy latch (dwa_local_planner resets it on every ``setPlan``,
@@ -56,6 +65,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from visnav.mapping.costmap_2d import (
     INSCRIBED_INFLATED_OBSTACLE,
@@ -429,7 +439,7 @@ class DWAPlanner:
         off[mask] = ~inside
         if footprint.is_circular:
             bad = np.zeros(xs.shape, np.bool_)
-            bad[mask] = centre >= INSCRIBED_INFLATED_OBSTACLE
+            bad[mask] = _circle_collisions(xs[mask], ys[mask], centre, costmap, footprint)
         else:
             p = self.params
             per = footprint.perimeter
@@ -560,8 +570,58 @@ class _Fields:
         d[inside] = field[my[inside], mx[inside]]
         ok = inside.copy()
         if strict:
+            # an end in an inscribed cell passed the exact-circle check: it is as far
+            # from the plan as its nearest neighbour outside the band, plus one cell
+            data = self.costmap.data
+            h, w = data.shape
+            for k in np.nonzero(inside & (d >= self.obstacle))[0]:
+                cx, cy = int(mx[k]), int(my[k])
+                if data[cy, cx] != INSCRIBED_INFLATED_OBSTACLE:
+                    continue
+                nb = field[max(cy - 1, 0) : min(cy + 2, h), max(cx - 1, 0) : min(cx + 2, w)]
+                free = nb[nb < self.obstacle]
+                if len(free):
+                    d[k] = float(free.min()) + 1.0
             ok &= d < self.obstacle
         return d, ok
+
+
+def _circle_collisions(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    cost: NDArray[np.uint8],
+    costmap: Costmap2D,
+    footprint: Footprint,
+) -> NDArray[np.bool_]:
+    """Which trajectory points collide for a circular robot (module docs).
+
+    ``x``, ``y`` are the points (the first one the robot's position), ``cost`` their
+    cells' costs. A lethal, unknown or off-map cell collides; a point in an inscribed
+    cell collides when it lies closer to the nearest lethal cell centre than the
+    inscribed radius, or than the robot's position does if that is closer already.
+    """
+    bad = cost > INSCRIBED_INFLATED_OBSTACLE
+    band = cost == INSCRIBED_INFLATED_OBSTACLE
+    if not band.any():
+        return bad
+    reach = footprint.inscribed_radius + costmap.resolution
+    px = np.concatenate([x[:1], x[band]])
+    py = np.concatenate([y[:1], y[band]])
+    lo = costmap.world_to_map_enforce_bounds(float(px.min()) - reach, float(py.min()) - reach)
+    hi = costmap.world_to_map_enforce_bounds(float(px.max()) + reach, float(py.max()) + reach)
+    jj, ii = np.nonzero(costmap.data[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1] == LETHAL_OBSTACLE)
+    if len(ii) == 0:  # inscribed by an obstacle that has left the map since: keep the cost
+        bad |= band
+        return bad
+    res = costmap.resolution
+    cells = np.stack(
+        [costmap.origin_x + (ii + lo[0] + 0.5) * res, costmap.origin_y + (jj + lo[1] + 0.5) * res],
+        axis=1,
+    )
+    d, _ = cKDTree(cells).query(np.stack([px, py], axis=1))
+    limit = min(footprint.inscribed_radius, float(d[0]))
+    bad[band] = d[1:] < limit - 1e-9
+    return bad
 
 
 def _first_known_run(costmap: Costmap2D, xy: NDArray[np.float64]) -> NDArray[np.int64]:

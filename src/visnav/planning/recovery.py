@@ -16,8 +16,12 @@ Each behaviour is a small state machine driven by the navigator's control loop
   ``backup_speed`` (0.025 m/s) within ``time_allowance`` (10 s), checking the footprint
   ``simulate_ahead_time`` (2 s) ahead.
 
-Difference: a circular robot may always rotate in place (its swept area does not
-change) unless its centre cell is lethal; rotate_recovery checks a 16-gon's outline.
+Difference: a circular robot does not rotate in place while the centre of a lethal cell
+lies more than one cell inside its radius (padded ``robot_radius``; one cell for the
+grid's quantisation, so a robot stopped at the edge of the inscribed band, as DWA
+leaves it, may still turn); rotate_recovery checks a 16-gon's outline for lethal cells
+only, so it turns with an obstacle well inside the circle, where the longer robot the
+circle stands for hits it (the car in the office, seed 5: BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -25,7 +29,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from visnav.mapping.costmap_2d import LETHAL_OBSTACLE
+import numpy as np
+
+from visnav.mapping.costmap_2d import LETHAL_OBSTACLE, Costmap2D
 from visnav.mapping.layer import CostmapLayer
 from visnav.mapping.layered_costmap import LayeredCostmap
 from visnav.planning.local_planner import Pose2D, angle_diff, compose_2d, footprint_in_collision
@@ -37,6 +43,7 @@ __all__ = [
     "RecoveryContext",
     "RecoveryStep",
     "RotateRecovery",
+    "nearest_lethal",
 ]
 
 _NS = 1_000_000_000
@@ -114,6 +121,20 @@ class ClearCostmapRecovery(Recovery):
         return RecoveryStep(done=True)
 
 
+def nearest_lethal(costmap: Costmap2D, x: float, y: float, within: float) -> float:
+    """Distance from ``(x, y)`` to the nearest lethal cell centre (inf beyond ``within``)."""
+    lo = costmap.world_to_map_enforce_bounds(x - within, y - within)
+    hi = costmap.world_to_map_enforce_bounds(x + within, y + within)
+    win = costmap.data[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
+    jj, ii = np.nonzero(win == LETHAL_OBSTACLE)
+    if len(ii) == 0:
+        return math.inf
+    res = costmap.resolution
+    cx = costmap.origin_x + (ii + lo[0] + 0.5) * res
+    cy = costmap.origin_y + (jj + lo[1] + 0.5) * res
+    return float(np.hypot(cx - x, cy - y).min())
+
+
 class RotateRecovery(Recovery):
     """Turn once in place (rotate_recovery)."""
 
@@ -157,10 +178,17 @@ class RotateRecovery(Recovery):
         cm = ctx.local_costmap.costmap
         fp = ctx.local_costmap.footprint
         if fp.is_circular:
-            cell = cm.world_to_map(x, y)
-            if cell is None or cm.get_cost(*cell) == LETHAL_OBSTACLE:
+            # the circle usually stands for a longer robot (the car's chassis reaches
+            # 0.30 m behind its centre): a full turn sweeps the whole circle, so an
+            # obstacle well inside it would be hit (module docs)
+            d = nearest_lethal(cm, x, y, fp.radius)
+            if d < fp.radius - cm.resolution:
                 return RecoveryStep(
-                    done=True, failed="cannot rotate in place: the robot is in an obstacle"
+                    done=True,
+                    failed=(
+                        f"cannot rotate in place: an obstacle lies {d:.2f} m from the robot's "
+                        f"centre, inside its {fp.radius:.2f} m radius"
+                    ),
                 )
         else:
             n = max(1, int(left / self.sim_granularity))
