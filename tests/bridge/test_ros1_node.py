@@ -266,6 +266,8 @@ def test_subscriber_connections_keep_a_small_send_buffer(
     make_node: Callable[..., Ros1Node],
 ) -> None:
     """At most about one image waits in the kernel for a subscriber (SEND_BUFFER_BYTES)."""
+    from pathlib import Path
+
     from visnav.bridge.ros1_node import SEND_BUFFER_BYTES
 
     talker, listener = make_node("talker"), make_node("listener")
@@ -274,5 +276,11 @@ def test_subscriber_connections_keep_a_small_send_buffer(
     assert _wait(lambda: talker.subscriber_count("/chatter") == 1)
     conn = talker._pubs["/chatter"].conns[0]
     size = conn.sock.getsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF)
-    # Linux doubles what is asked for (bookkeeping); the autotuned default starts at 16 KiB
-    assert SEND_BUFFER_BYTES <= size <= 2 * SEND_BUFFER_BYTES
+    # Linux caps the request at net.core.wmem_max (212992 on many kernels, 4 MiB on the
+    # development machine) and doubles it (bookkeeping); the autotuned default starts at
+    # 16 KiB
+    try:
+        asked = min(SEND_BUFFER_BYTES, int(Path("/proc/sys/net/core/wmem_max").read_text()))
+    except OSError:
+        asked = SEND_BUFFER_BYTES
+    assert asked <= size <= 2 * asked

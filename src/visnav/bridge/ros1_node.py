@@ -62,7 +62,9 @@ many messages to send."""
 
 SEND_BUFFER_BYTES = 512 * 1024
 """``SO_SNDBUF`` asked for on each connection to a ROS 1 subscriber (Linux doubles it: 1 MiB,
-about one 640x480 rgb8 image). The kernel's send buffer bounds how many bytes are on their way
+about one 640x480 rgb8 image; a kernel whose ``net.core.wmem_max`` is lower caps the request
+there first: 212992, i.e. 416 KiB, on many distributions' defaults, where 256 KiB measured as
+well as 512). The kernel's send buffer bounds how many bytes are on their way
 to a subscriber; a message not yet in the socket stays in the connection's drop-oldest queue,
 where a newer one replaces it for free. With the default (autotuned up to 4 MiB) a flooding
 topic had ~4 images in the send buffer and ~3 in the subscriber's receive queue, and a rospy

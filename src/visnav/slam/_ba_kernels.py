@@ -268,7 +268,7 @@ def _step(
                     hpl[o, i, j] = w * s
         for r in range(3):
             hll[r, r] += lam * hll[r, r] + 1e-12
-        _inv3(hll, hll_inv[pt])  # a point nothing constrains keeps a zero inverse: no step
+        _inv3(hll, hll_inv[pt])  # a point nothing constrains has a zero right-hand side: no step
     for i in range(dim):
         hpp_diag[i] = hpp[i, i]
     # Schur complement: S = Hpp - sum_pt Hpl Hll^-1 Hpl^T, b = bp - sum_pt Hpl Hll^-1 bl

@@ -1,4 +1,4 @@
-"""Bundle adjustment and pose-graph optimisation with gtsam.
+"""Bundle adjustment (compiled, gtsam for large problems) and pose-graph optimisation (gtsam).
 
 * :func:`bundle_adjustment`: keyframe poses and map points on reprojection
   factors; observations with depth use a virtual-stereo factor (gtsam's
@@ -6,7 +6,9 @@
   projection factor; Huber kernels, sigma of one pixel times the octave scale.
   Local BA optimises a window of covisible keyframes with the other keyframes
   that see the window's points held fixed; global BA optimises everything but
-  the first keyframe.
+  the first keyframe. Up to :data:`MAX_DENSE_KEYFRAMES` free poses the compiled
+  solver of :mod:`visnav.slam._ba_kernels` runs (same factors and kernels, held
+  poses exactly fixed instead of gtsam's 1e-6 prior), larger problems gtsam.
 * :func:`optimize_pose_graph`: keyframe poses only, on relative-pose factors
   from the spanning tree, strong covisibility and loop closures
   (``BetweenFactorPose3``), the first keyframe fixed.
@@ -60,8 +62,8 @@ class LoopConstraint:
 class BaResult:
     """What a bundle adjustment did.
 
-    ``error`` is the solver's failure text (gtsam raised: an indeterminate system, a
-    point behind a camera...); the map is then left as it was.
+    ``error`` is the solver's failure text (gtsam raised, e.g. on an indeterminate
+    system; the compiled solver's result was not finite); the map is then left as it was.
     """
 
     keyframes: int
