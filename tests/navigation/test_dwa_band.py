@@ -67,7 +67,7 @@ def test_a_robot_in_the_band_is_not_let_closer() -> None:
     dwa.set_plan(np.stack([s * np.cos(-0.5), s * np.sin(-0.5), np.full_like(s, -0.5)], 1))
     v, w = dwa._samples((0.0, 0.0))
     xs, ys, ths, mask, _ = dwa._rollout(pose, v, w)
-    valid, _ = dwa._obstacle_costs(xs, ys, ths, mask, v, cm, lc.footprint)
+    valid, _ = dwa._obstacle_costs(xs, ys, ths, mask, v, cm, lc.footprint, robot=pose[:2])
     # every rollout at rest drives toward the wall: none may start
     assert not valid.any()
     r = dwa.compute_velocity(pose, (0.0, 0.0), cm, lc.footprint, (0.0, 0.0, 0.0))
@@ -81,7 +81,7 @@ def test_outside_the_band_nothing_changes() -> None:
     dwa = DWAPlanner(DWAParams(**DWA_DEFAULTS))
     v, w = dwa._samples((0.3, 0.0))
     xs, ys, ths, mask, _ = dwa._rollout(pose, v, w)
-    valid, _ = dwa._obstacle_costs(xs, ys, ths, mask, v, cm, lc.footprint)
+    valid, _ = dwa._obstacle_costs(xs, ys, ths, mask, v, cm, lc.footprint, robot=pose[:2])
     centre = cm.costs_at(np.stack([xs[mask], ys[mask]], 1))
     hits = np.zeros(xs.shape, bool)
     hits[mask] = centre >= INSCRIBED_INFLATED_OBSTACLE
@@ -120,6 +120,6 @@ def test_points_are_checked_against_the_lethal_cell_not_their_cell() -> None:
         ys = np.array([[start[1], point[1]]])
         mask = np.ones((1, 2), bool)
         valid, _ = dwa._obstacle_costs(
-            xs, ys, np.zeros((1, 2)), mask, np.array([0.3]), cm, lc.footprint
+            xs, ys, np.zeros((1, 2)), mask, np.array([0.3]), cm, lc.footprint, robot=start
         )
         assert bool(valid[0]) is not collides

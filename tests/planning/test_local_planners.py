@@ -102,7 +102,9 @@ def test_dwa_picks_the_collision_free_sample() -> None:
     assert (costs < 253).all()
     # the straight sample would have hit the wall
     xs, ys, ths, mask, _ = dwa._rollout(ID, np.array([0.4]), np.array([0.0]))
-    ok, _ = dwa._obstacle_costs(xs, ys, ths, mask, np.array([0.4]), lc.costmap, lc.footprint)
+    ok, _ = dwa._obstacle_costs(
+        xs, ys, ths, mask, np.array([0.4]), lc.costmap, lc.footprint, robot=ID[:2]
+    )
     assert not ok[0]
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
@@ -90,7 +91,11 @@ class NodeOptions(TypedDict, total=False):
 
 
 class Publisher(Generic[MsgT]):
-    """Publishes one message type on one topic; made by :meth:`Node.create_publisher`."""
+    """Publishes one message type on one topic; made by :meth:`Node.create_publisher`.
+
+    :meth:`publish` is thread-safe (as rclpy's): threads publishing on one publisher
+    take turns, since the CDR serialization buffer is reused between messages.
+    """
 
     def __init__(self, node: Node, msg_type: type[MsgT], topic_name: str, qos: QoSProfile) -> None:
         self.node = node
@@ -105,6 +110,7 @@ class Publisher(Generic[MsgT]):
         self._zpub: Any = None
         self._cdr = CdrSerializer(self.type_name)
         self._zid = node.context.zid
+        self._lock = threading.Lock()
         self.sequence = 0
 
     def link(self, targets: list[Subscription[Any]]) -> None:
@@ -128,12 +134,15 @@ class Publisher(Generic[MsgT]):
                 f"publish a {self.type_name} or create another publisher"
             )
             raise TopicTypeConflictError(text)
-        self.sequence += 1
-        self.node.context.deliver_local(self, msg)
-        zpub = self._zpub
-        if zpub is not None and zpub.wants_sample():
-            att = encode_attachment(self.sequence, time.time_ns(), self.entity_id, self._zid)
-            zpub.put(self._cdr.serialize(msg), att)
+        # one message at a time: the serializer's buffer is reused until Zenoh has copied
+        # it, and the sequence number in the attachment must be this message's own
+        with self._lock:
+            self.sequence += 1
+            self.node.context.deliver_local(self, msg)
+            zpub = self._zpub
+            if zpub is not None and zpub.wants_sample():
+                att = encode_attachment(self.sequence, time.time_ns(), self.entity_id, self._zid)
+                zpub.put(self._cdr.serialize(msg), att)
 
     def local_info(self) -> MessageInfo:
         """The :class:`MessageInfo` of the message being delivered in-process."""

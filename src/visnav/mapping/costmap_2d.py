@@ -241,6 +241,32 @@ class Costmap2D:
         out[inside] = self.data[my[inside], mx[inside]]
         return out
 
+    def lethal_centres(
+        self, x_min: float, y_min: float, x_max: float, y_max: float
+    ) -> NDArray[np.float64]:
+        """World centres ``(N, 2)`` of the LETHAL cells that overlap a world box.
+
+        The box ``[x_min, x_max] x [y_min, y_max]`` is cut to the grid; a box that
+        misses the grid (or an empty grid) gives no cells. A cell counts when the box
+        touches any part of it, so a centre may lie up to half a cell outside the box.
+        Cells come in row-major order (``my``, then ``mx``).
+        """
+        empty = np.empty((0, 2), np.float64)
+        if self.size_x == 0 or self.size_y == 0 or x_max < x_min or y_max < y_min:
+            return empty
+        x0, y0 = self.world_to_map_no_bounds(x_min, y_min)
+        x1, y1 = self.world_to_map_no_bounds(x_max, y_max)
+        if x1 < 0 or y1 < 0 or x0 >= self.size_x or y0 >= self.size_y:
+            return empty
+        x0, y0 = max(x0, 0), max(y0, 0)
+        x1, y1 = min(x1, self.size_x - 1), min(y1, self.size_y - 1)
+        jj, ii = np.nonzero(self.data[y0 : y1 + 1, x0 : x1 + 1] == LETHAL_OBSTACLE)
+        res = self.resolution
+        return np.stack(
+            [self.origin_x + (ii + x0 + 0.5) * res, self.origin_y + (jj + y0 + 0.5) * res],
+            axis=1,
+        )
+
     # ------------------------------------------------------------------ cells
     def get_cost(self, mx: int, my: int) -> int:
         """Cost of cell ``(mx, my)``."""

@@ -13,7 +13,11 @@ or origin resizes the whole layered costmap to it (unless the size is locked). E
 map repaints the map's extent; ``use_maximum`` combines with max instead of overwriting
 (the default overwrites every cell, unknown ones included). On a rolling costmap (or
 when the map's frame is not the costmap's global frame) every master cell is looked up
-in the map through the 2D transform ``T_global_map`` given with the map.
+in the map through the 2D transform ``T_global_map`` given with the map. On a
+non-rolling costmap, when the map moves (a new transform) or a new map covers less,
+the update also resets the extent painted last time, so no stale static costs stay
+where the map no longer lies (costmap_2d's static layer never moves a map in a
+non-rolling costmap; it has no such case).
 
 Difference: costmap_2d's rolling static layer asks TF per update; here the caller
 passes the transform with :meth:`StaticLayer.set_map` or :meth:`set_map_transform`
@@ -99,6 +103,7 @@ class StaticLayer(CostmapLayer):
         self.map_frame = ""
         self.T_global_map = np.eye(3)
         self._has_updated_data = False
+        self._painted: NDArray[np.float64] | None = None
         self._table = np.zeros(256, np.uint8)
         self.current = False
         self.reason = "no map received yet"
@@ -195,10 +200,16 @@ class StaticLayer(CostmapLayer):
     def update_bounds(
         self, robot_x: float, robot_y: float, robot_yaw: float, bounds: Bounds
     ) -> None:
-        """Repaint the map's extent when a new map arrived (always on a rolling costmap)."""
+        """Repaint the map's extent when a new map arrived (always on a rolling costmap).
+
+        On a non-rolling costmap the extent painted last time is included too when it
+        differs (the map moved): the layered costmap resets those cells and no layer
+        paints static costs there any more.
+        """
         if self.map is None:
             return
-        if not self.layered.rolling_window and not self._has_updated_data:
+        rolling = self.layered.rolling_window
+        if not rolling and not self._has_updated_data:
             return
         m = self.map
         corners = np.array(
@@ -209,8 +220,15 @@ class StaticLayer(CostmapLayer):
                 [m.origin_x + m.size_in_meters_x, m.origin_y + m.size_in_meters_y, 1.0],
             ]
         )
-        for cx, cy, _ in corners @ self.T_global_map.T:
+        placed = corners @ self.T_global_map.T
+        for cx, cy, _ in placed:
             bounds.touch(float(cx), float(cy))
+        if not rolling:
+            old = self._painted
+            if old is not None and not np.array_equal(old, placed):
+                for cx, cy, _ in old:
+                    bounds.touch(float(cx), float(cy))
+            self._painted = placed
         self._has_updated_data = False
 
     def update_costs(self, master: Costmap2D, x0: int, y0: int, xn: int, yn: int) -> None:

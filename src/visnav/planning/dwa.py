@@ -356,7 +356,9 @@ class DWAPlanner:
         xs, ys, ths, mask, _ = self._rollout(pose, np.array([v]), np.array([w]))
         if not mask.any():
             return True
-        ok, _ = self._obstacle_costs(xs, ys, ths, mask, np.array([v]), costmap, footprint)
+        ok, _ = self._obstacle_costs(
+            xs, ys, ths, mask, np.array([v]), costmap, footprint, robot=(pose[0], pose[1])
+        )
         return bool(ok[0])
 
     def _samples(
@@ -429,8 +431,10 @@ class DWAPlanner:
         v: NDArray[np.float64],
         costmap: Costmap2D,
         footprint: Footprint,
+        *,
+        robot: tuple[float, float],
     ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
-        """(valid, max cost) per trajectory."""
+        """(valid, max cost) per trajectory; ``robot`` is the robot's position."""
         centre = costmap.costs_at(np.stack([xs[mask], ys[mask]], axis=1), outside=NO_INFORMATION)
         cost = np.zeros(xs.shape, np.int64)
         cost[mask] = centre
@@ -439,7 +443,9 @@ class DWAPlanner:
         off[mask] = ~inside
         if footprint.is_circular:
             bad = np.zeros(xs.shape, np.bool_)
-            bad[mask] = _circle_collisions(xs[mask], ys[mask], centre, costmap, footprint)
+            bad[mask] = _circle_collisions(
+                xs[mask], ys[mask], centre, costmap, footprint, robot=robot
+            )
         else:
             p = self.params
             per = footprint.perimeter
@@ -483,7 +489,9 @@ class DWAPlanner:
             return ControlResult(False, reason="no velocity sample satisfies the limits")
         xs, ys, ths, mask, steps = self._rollout(pose, v, w)
         good = steps > 0
-        valid, occ = self._obstacle_costs(xs, ys, ths, mask, v, costmap, footprint)
+        valid, occ = self._obstacle_costs(
+            xs, ys, ths, mask, v, costmap, footprint, robot=(pose[0], pose[1])
+        )
         valid &= good & self._osc.allowed(v, w)
         fields = _Fields(costmap, local, pose, p.forward_point_distance)
         if fields.targets == 0:
@@ -592,11 +600,13 @@ def _circle_collisions(
     cost: NDArray[np.uint8],
     costmap: Costmap2D,
     footprint: Footprint,
+    *,
+    robot: tuple[float, float],
 ) -> NDArray[np.bool_]:
     """Which trajectory points collide for a circular robot (module docs).
 
-    ``x``, ``y`` are the points (the first one the robot's position), ``cost`` their
-    cells' costs. A lethal, unknown or off-map cell collides; a point in an inscribed
+    ``x``, ``y`` are the points, ``cost`` their cells' costs, ``robot`` the robot's
+    position. A lethal, unknown or off-map cell collides; a point in an inscribed
     cell collides when it lies closer to the nearest lethal cell centre than the
     inscribed radius, or than the robot's position does if that is closer already.
     """
@@ -605,19 +615,17 @@ def _circle_collisions(
     if not band.any():
         return bad
     reach = footprint.inscribed_radius + costmap.resolution
-    px = np.concatenate([x[:1], x[band]])
-    py = np.concatenate([y[:1], y[band]])
-    lo = costmap.world_to_map_enforce_bounds(float(px.min()) - reach, float(py.min()) - reach)
-    hi = costmap.world_to_map_enforce_bounds(float(px.max()) + reach, float(py.max()) + reach)
-    jj, ii = np.nonzero(costmap.data[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1] == LETHAL_OBSTACLE)
-    if len(ii) == 0:  # inscribed by an obstacle that has left the map since: keep the cost
+    px = np.concatenate([[robot[0]], x[band]])
+    py = np.concatenate([[robot[1]], y[band]])
+    cells = costmap.lethal_centres(
+        float(px.min()) - reach,
+        float(py.min()) - reach,
+        float(px.max()) + reach,
+        float(py.max()) + reach,
+    )
+    if len(cells) == 0:  # inscribed by an obstacle that has left the map since: keep the cost
         bad |= band
         return bad
-    res = costmap.resolution
-    cells = np.stack(
-        [costmap.origin_x + (ii + lo[0] + 0.5) * res, costmap.origin_y + (jj + lo[1] + 0.5) * res],
-        axis=1,
-    )
     d, _ = cKDTree(cells).query(np.stack([px, py], axis=1))
     limit = min(footprint.inscribed_radius, float(d[0]))
     bad[band] = d[1:] < limit - 1e-9

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from visnav.mapping.costmap_2d import LETHAL_OBSTACLE, Costmap2D
+from visnav.mapping.costmap_2d import Costmap2D
 from visnav.mapping.layer import CostmapLayer
 from visnav.mapping.layered_costmap import LayeredCostmap
 from visnav.planning.local_planner import Pose2D, angle_diff, compose_2d, footprint_in_collision
@@ -122,17 +122,16 @@ class ClearCostmapRecovery(Recovery):
 
 
 def nearest_lethal(costmap: Costmap2D, x: float, y: float, within: float) -> float:
-    """Distance from ``(x, y)`` to the nearest lethal cell centre (inf beyond ``within``)."""
-    lo = costmap.world_to_map_enforce_bounds(x - within, y - within)
-    hi = costmap.world_to_map_enforce_bounds(x + within, y + within)
-    win = costmap.data[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
-    jj, ii = np.nonzero(win == LETHAL_OBSTACLE)
-    if len(ii) == 0:
+    """Distance from ``(x, y)`` to the nearest lethal cell centre (inf beyond ``within``).
+
+    The search covers the cells of the square of half-side ``within`` around the
+    point (:meth:`Costmap2D.lethal_centres`), so a lethal centre slightly farther
+    than ``within`` (a diagonal) may still be found.
+    """
+    cells = costmap.lethal_centres(x - within, y - within, x + within, y + within)
+    if len(cells) == 0:
         return math.inf
-    res = costmap.resolution
-    cx = costmap.origin_x + (ii + lo[0] + 0.5) * res
-    cy = costmap.origin_y + (jj + lo[1] + 0.5) * res
-    return float(np.hypot(cx - x, cy - y).min())
+    return float(np.hypot(cells[:, 0] - x, cells[:, 1] - y).min())
 
 
 class RotateRecovery(Recovery):

@@ -10,7 +10,9 @@
 * :func:`route_mujoco_warnings` sends MuJoCo's warnings to the ``visnav.sim.mujoco``
   logger instead of stdout and ``MUJOCO_LOG.TXT`` in the current directory.
 * :func:`refuse_second_simulation` refuses to start a simulation in a graph domain
-  where another one already publishes ``/clock``.
+  where another one already publishes ``/clock`` or is starting: a claim on
+  :data:`CLAIM_TOPIC` closes the check-then-act race of two simulations started at
+  the same moment (the one with the larger Zenoh session id refuses).
 """
 
 from __future__ import annotations
@@ -23,14 +25,18 @@ from typing import TYPE_CHECKING
 import mujoco
 
 from visnav.graph.introspect import wait_for_discovery
+from visnav.graph.node import Node
+from visnav.msgs.types import String
 from visnav.sim.errors import SecondSimulationError, SimulationUnstableError, SpawnPoseError
 from visnav.sim.world_geometry import shape_aabb
 
 if TYPE_CHECKING:
     from visnav.description.worldmodel import WorldDescription
     from visnav.graph.context import Context
+    from visnav.graph.graph_cache import EndpointInfo
 
 __all__ = [
+    "CLAIM_TOPIC",
     "InstabilityMonitor",
     "SecondSimulationError",
     "SimulationUnstableError",
@@ -40,6 +46,10 @@ __all__ = [
     "route_mujoco_warnings",
     "world_bounds",
 ]
+
+CLAIM_TOPIC = "/_visnav/simulation_claim"
+"""A hidden topic (never published on): each simulation that passed the /clock check
+keeps a publisher on it for as long as it runs, its claim on the graph domain."""
 
 _MUJOCO_LOG = logging.getLogger("visnav.sim.mujoco")
 _MARGIN_M = 10.0  # a spawn may lie this far outside the obstacles of a world without ground
@@ -173,26 +183,65 @@ def route_mujoco_warnings() -> None:
         mujoco.set_mju_user_warning(_log_mujoco_warning)
 
 
-def refuse_second_simulation(ctx: Context, *, command: str = "visnav sim") -> None:
+def refuse_second_simulation(
+    ctx: Context, *, command: str = "visnav sim", owner: Node | None = None
+) -> None:
     """Refuse to start when another simulation publishes ``/clock`` in ``ctx``'s domain.
 
-    Two simulations in one domain mix their clocks, TF and commands.
+    Two simulations in one domain mix their clocks, TF and commands. Looking for a
+    ``/clock`` publisher alone is check-then-act: two simulations started at the same
+    moment both find none (their clocks come seconds later, after the world is built)
+    and both run. So a simulation that finds no ``/clock`` publisher and no claim of
+    another process then claims the domain (a publisher on :data:`CLAIM_TOPIC`),
+    waits for discovery again and looks once more: of the claims made at the same
+    moment, the one of the smallest Zenoh session id stays and the others refuse.
+    Both sides see the same claims, so exactly one runs. ROS has no such guard
+    (two Gazebos in one ``ROS_DOMAIN_ID`` mix their clocks silently).
 
     Args:
         ctx: the graph context the new simulation would join.
         command: the command to show in the fix.
+        owner: the node the claim belongs to (it goes when the node is destroyed);
+            None puts it on a hidden node ``_visnav_simulation_claim`` of ``ctx``.
 
     Raises:
         SecondSimulationError: naming the domain, the other node and the fix.
     """
+    own = ctx.zid
     if ctx.zenoh is not None:
         wait_for_discovery(ctx, timeout_s=1.0)
     clocks = [e for e in ctx.graph.endpoints("/clock") if e.kind == "publisher"]
-    if clocks:
+    claims = [e for e in _claims(ctx) if e.zid != own]
+    if clocks or claims:
+        other = (clocks or claims)[0]
+        what = "already publishes /clock" if clocks else "is starting"
         msg = (
-            f"another simulation already publishes /clock in graph domain {ctx.domain!r} "
-            f"(node {clocks[0].node_fqn}): two simulations in one domain mix their clocks, TF "
-            "and commands; stop it, or run this one in a domain of its own "
+            f"another simulation {what} in graph domain {ctx.domain!r} (node "
+            f"{other.node_fqn}): two simulations in one domain mix their clocks, TF and "
+            "commands; stop it, or run this one in a domain of its own "
             f"(VISNAV_DOMAIN=<number> {command} ...)"
         )
         raise SecondSimulationError(msg)
+    if ctx.zenoh is None:  # an in-process graph: nothing else can start at the same moment
+        return
+    node = owner if owner is not None else Node("_visnav_simulation_claim", context=ctx)
+    pub = node.create_publisher(String, CLAIM_TOPIC, 1)
+    wait_for_discovery(ctx, timeout_s=2.0)
+    rivals = sorted((e for e in _claims(ctx) if e.zid < own), key=lambda e: e.zid)
+    if not rivals:
+        return
+    if owner is None:
+        node.destroy_node()
+    else:
+        node.destroy_publisher(pub)
+    msg = (
+        f"another simulation started at the same moment in graph domain {ctx.domain!r} "
+        f"(node {rivals[0].node_fqn}) and keeps the domain: two simulations in one domain "
+        "mix their clocks, TF and commands; run this one in a domain of its own "
+        f"(VISNAV_DOMAIN=<number> {command} ...)"
+    )
+    raise SecondSimulationError(msg)
+
+
+def _claims(ctx: Context) -> list[EndpointInfo]:
+    return [e for e in ctx.graph.endpoints(CLAIM_TOPIC) if e.kind == "publisher"]

@@ -151,7 +151,7 @@ class SimulatorNode(Node):
     def __init__(self, name: str = "sim", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         try:
-            refuse_second_simulation(self.context, command="visnav launch")
+            refuse_second_simulation(self.context, command="visnav launch", owner=self)
             self.sim = self._build()
         except BaseException:
             super().destroy_node()
