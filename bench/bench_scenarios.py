@@ -16,9 +16,9 @@ prints goals reached, collisions, path ratio (car) or speed / clearance / planni
 * ``--map TEMPLATE`` (car): localise in a saved map instead of mapping (``visnav run car
   --map``: map_server + amcl); ``{seed}`` in the path is replaced by each run's seed, so
   ``--map runs/first/{seed}/map.yaml`` gives every seed the map its own earlier run wrote
-  (issue 14's "map once, then navigate"). The runs are ``visnav run`` processes, ``--jobs``
-  at a time, each in its own ``VISNAV_DOMAIN`` (the sweep library has no per-seed
-  option).
+  (issue 14's "map once, then navigate"). It is the sweep option ``--set map=TEMPLATE``:
+  the same sweep, outputs and backends as without it; a missing or broken map of any seed
+  stops the bench before anything runs (one line naming the seed and the path).
 
 The sweep directories go to a temporary ``bench-<scenario>-*`` directory (printed).
 """
@@ -26,21 +26,20 @@ The sweep directories go to a temporary ``bench-<scenario>-*`` directory (printe
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from visnav.errors import VisnavError
 from visnav.scenarios.sweep import SweepBackend, run_sweep
 from visnav.scenarios.sweep_check import run_differences
 from visnav.scenarios.sweep_local import LocalBackend
-from visnav.scenarios.sweep_spec import parse_seeds
+from visnav.scenarios.sweep_spec import parse_seeds, parse_sets
 
 
 def _backend(kind: str, jobs: int) -> SweepBackend:
@@ -57,6 +56,8 @@ def _sweep(args: argparse.Namespace, out: Path, jobs: int) -> tuple[dict[str, An
         sets["ideal_sensors"] = [True]
     if args.duration is not None:
         sets["duration"] = [args.duration]
+    if args.map is not None:
+        sets.update(parse_sets([f"map={args.map}"]))
     t0 = time.perf_counter()
     state = run_sweep(
         args.scenario,
@@ -68,36 +69,6 @@ def _sweep(args: argparse.Namespace, out: Path, jobs: int) -> tuple[dict[str, An
         report=False,
     )
     return state, time.perf_counter() - t0
-
-
-def _map_runs(args: argparse.Namespace, out: Path) -> tuple[dict[str, Any], float]:
-    """``visnav run car --map`` per seed, ``--jobs`` at a time (the ``--map`` option)."""
-
-    def one(seed: int) -> dict[str, Any]:
-        run_dir = out / str(seed)
-        cmd = [sys.executable, "-m", "visnav.cli.main", "run", args.scenario, "--quiet"]
-        cmd += ["--seed", str(seed), "--out", str(run_dir)]
-        map_path = args.map.replace("{seed}", str(seed))
-        if not Path(map_path).is_file():
-            return {"seed": seed, "status": "failed", "reason": f"no map file {map_path}"}
-        cmd += ["--map", map_path]
-        cmd += ["--no-slam"] if args.no_slam else []
-        cmd += ["--ideal-sensors"] if args.ideal_sensors else []
-        cmd += ["--duration", str(args.duration)] if args.duration is not None else []
-        env = {**os.environ, "VISNAV_DOMAIN": str(3_500_000 + (os.getpid() * 16 + seed) % 400_000)}
-        out.mkdir(parents=True, exist_ok=True)
-        with (out / f"{seed}.log").open("w") as log:
-            proc = subprocess.run(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, check=False)
-        summary = run_dir / "summary.json"
-        if proc.returncode != 0 or not summary.is_file():
-            return {"seed": seed, "status": "failed", "reason": f"exit {proc.returncode}"}
-        print(f"seed {seed} done; load {os.getloadavg()}", file=sys.stderr, flush=True)
-        return {"seed": seed, "status": "ok", "summary": json.loads(summary.read_text())}
-
-    t0 = time.perf_counter()
-    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        runs = list(pool.map(one, parse_seeds(args.seeds)))
-    return {"runs": runs}, time.perf_counter() - t0
 
 
 def _print_runs(scenario: str, state: dict[str, Any]) -> None:
@@ -199,6 +170,8 @@ def _check_run(args: argparse.Namespace, root: Path, state: dict[str, Any]) -> i
         cmd += ["--seed", str(run["seed"]), "--out", str(ref)]
         cmd += ["--no-slam"] if args.no_slam else []
         cmd += ["--ideal-sensors"] if args.ideal_sensors else []
+        map_path = run["options"].get("map")  # the run's map, {seed} replaced
+        cmd += ["--map", map_path] if map_path else []
         env = {**os.environ, "VISNAV_DOMAIN": str(3_000_000 + os.getpid() % 100_000)}
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
@@ -239,7 +212,7 @@ def main() -> None:
             _, wall_one = _sweep(args, root / f"one-job-{rep}", 1)
             print(f"one job: {wall_one:.1f} s wall; load average {os.getloadavg()}", flush=True)
         out = root / ("jobs" if rep == 0 else f"jobs-{rep}")
-        state, wall = _map_runs(args, out) if args.map else _sweep(args, out, args.jobs)
+        state, wall = _sweep(args, out, args.jobs)
         print(f"{args.jobs} job(s), {args.backend}: {wall:.1f} s wall; load {os.getloadavg()}")
         if args.compare_jobs:
             ratios.append(wall / wall_one)
@@ -253,4 +226,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except VisnavError as exc:  # bad --seeds / --map: one line, not a traceback
+        sys.exit(f"error: {exc}")

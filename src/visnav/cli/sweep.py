@@ -27,7 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=V1,V2",
         help=f"vary a run option (one setting per value); keys: {keys} (a launch file: "
-        "its args, record_all, record_images)",
+        "its args, record_all, record_images). car: map=runs/first/{seed}/map.yaml localises "
+        "each run in the map its own seed's earlier run wrote (visnav run car --map)",
     )
     parser.add_argument("--jobs", type=int, default=None, help="runs at a time (default 1 local)")
     parser.add_argument("--backend", choices=["local", "ray"], default="local")

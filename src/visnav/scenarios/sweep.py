@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Protocol, TextIO
 
-from visnav.scenarios.sweep_spec import RunSpec, SweepError, expand_runs
+from visnav.scenarios.sweep_spec import RunSpec, SweepError, check_run_inputs, expand_runs
 from visnav.scenarios.sweep_worker import RunResult
 
 __all__ = [
@@ -284,7 +284,7 @@ def run_sweep(
     """Run a sweep (or the rest of one) and write its outputs; return the sweep state.
 
     Args:
-        scenario: a built-in scenario (``car``, ``drone``).
+        scenario: a built-in scenario (``car``, ``drone``) or a scenario launch file.
         out: the sweep directory.
         backend: where the runs run.
         seeds: the seeds (None with ``resume``: the stored ones).
@@ -297,18 +297,20 @@ def run_sweep(
         The state written to ``sweep.json``.
 
     Raises:
-        SweepError: bad arguments or sweep directory (before anything runs).
+        SweepError: bad arguments, sweep directory or input file (a ``map`` of a run
+            that is to run), before anything runs.
         KeyboardInterrupt: after Ctrl-C, once the directory is consistent.
     """
     sweep_dir = Path(out).absolute()
     state = _open_state(sweep_dir, scenario, seeds, sets, resume=resume, backend=backend.name)
-    sweep_dir.mkdir(parents=True, exist_ok=True)
     todo = _todo(sweep_dir, state)
+    specs = [RunSpec.from_json(run) for run in todo]
+    check_run_inputs(specs)  # a missing map: one line, before anything runs or is written
+    sweep_dir.mkdir(parents=True, exist_ok=True)
     by_key = {run["key"]: run for run in state["runs"]}
     for run in todo:
         run.update(status="pending", reason=None, summary=None, wall_s=None, node=None)
     _save(sweep_dir, state)
-    specs = [RunSpec.from_json(run) for run in todo]
     bar = _Bar(len(state["runs"]), len(state["runs"]) - len(todo), progress)
     finished: set[str] = set()
     results = backend.run(specs, sweep_dir)

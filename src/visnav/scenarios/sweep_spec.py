@@ -3,7 +3,11 @@
 ``--seeds 0-99`` (a range, both ends included), ``--seeds 0,3,7`` or ``--seeds 4``;
 ``--set key=v1,v2`` (one option of :func:`~visnav.scenarios.runner.run_scenario`, the
 values one setting each; several ``--set`` give their cartesian product). The scenario is
-``car``, ``drone`` or a YAML scenario launch file: then the keys are the file's launch
+``car``, ``drone`` or a YAML scenario launch file. ``--set map=PATH`` (car) localises every
+run in a saved map as ``visnav run car --map PATH`` does; ``{seed}`` in ``PATH`` is replaced
+by each run's seed (``--set map=runs/first/{seed}/map.yaml``: every seed in the map its own
+earlier run wrote), and every run's map is checked before anything runs
+(:func:`check_run_inputs`). For a launch file the keys are the file's launch
 arguments (but ``seed`` and ``out``, which the sweep sets) plus ``record_all`` and
 ``record_images``, each value checked by loading the file with it (``choices``). Every run
 gets its own directory ``runs/<setting>/<seed>`` and its own graph domain, derived
@@ -14,8 +18,10 @@ one, on one machine or across a cluster.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import itertools
 import math
+import os
 import re
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
@@ -30,12 +36,15 @@ __all__ = [
     "RUN_OPTIONS",
     "RunOption",
     "RunSpec",
+    "SEED_FIELD",
     "SweepError",
+    "check_run_inputs",
     "check_scenario",
     "domain_for",
     "expand_runs",
     "parse_seeds",
     "parse_sets",
+    "resolve_map",
     "scenario_options",
     "setting_label",
 ]
@@ -58,6 +67,10 @@ class RunOption:
     help: str
 
 
+class _ReasonedValueError(ValueError):
+    """A value that does not parse, with a reason worth showing in the one-line error."""
+
+
 def _parse_bool(text: str) -> bool:
     low = text.strip().lower()
     if low in ("true", "1", "yes", "on"):
@@ -74,6 +87,27 @@ def _parse_seconds(text: str) -> float:
     return value
 
 
+SEED_FIELD = "{seed}"
+"""In a ``--set map=`` value: replaced by each run's seed."""
+
+
+def _parse_map(text: str) -> str:
+    """A map path template, made absolute (a Ray task may run in another directory)."""
+    value = text.strip()
+    if not value or "\0" in value:
+        raise ValueError(text)
+    rest = value.replace(SEED_FIELD, "")
+    if "{" in rest or "}" in rest:
+        msg = f"only {SEED_FIELD} is replaced in a map path; remove the other braces"
+        raise _ReasonedValueError(msg)
+    return str(Path(os.path.expanduser(value)).absolute())  # noqa: PTH111 - keeps ~nobody
+
+
+def resolve_map(template: str, seed: int) -> str:
+    """The map path of the run with ``seed``: ``template`` with ``{seed}`` replaced."""
+    return template.replace(SEED_FIELD, str(int(seed)))
+
+
 RUN_OPTIONS: dict[str, RunOption] = {
     "slam": RunOption("slam", "bool", _parse_bool, "car: run and score the visual SLAM"),
     "duration": RunOption(
@@ -87,8 +121,20 @@ RUN_OPTIONS: dict[str, RunOption] = {
     "ideal_sensors": RunOption(
         "ideal_sensors", "bool", _parse_bool, "car: ground-truth odometry, noise-free cameras"
     ),
+    "map": RunOption(
+        "launch_args",
+        "path of a map.yaml, {seed}: the run's seed",
+        _parse_map,
+        "car: localise in this saved map (map_server + amcl: visnav run car --map)",
+    ),
 }
-"""The seed-independent options of ``visnav run`` a sweep may vary (``--set KEY=...``)."""
+"""The options of ``visnav run`` a sweep may vary (``--set KEY=...``).
+
+``map`` is ``visnav run car --map``: the launch args ``map`` (the run's path, its
+``{seed}`` replaced) and ``use_map: true``; the others are :func:`run_scenario` keywords.
+"""
+_MAP_SCENARIOS = ("car",)
+"""The built-in scenarios that can localise in a saved map (launch arg ``use_map``)."""
 
 
 _FILE_RUNNER_KEYS = ("record_all", "record_images")
@@ -217,10 +263,11 @@ def parse_sets(
         for raw in values.split(","):
             try:
                 parsed.append(option.parse(raw))
-            except ValueError:
+            except ValueError as exc:
+                why = f" ({exc})" if isinstance(exc, _ReasonedValueError) else ""
                 msg = (
-                    f"--set {item!r}: {key}={raw!r} is not a {option.type_name}; valid keys: "
-                    f"{_valid_keys(valid)}"
+                    f"--set {item!r}: {key}={raw!r} is not a {option.type_name}{why}; valid "
+                    f"keys: {_valid_keys(valid)}"
                 )
                 raise SweepError(msg) from None
         out[key] = list(dict.fromkeys(parsed))
@@ -235,11 +282,29 @@ def _format_value(value: Any) -> str:
     return str(value)
 
 
+_MAX_LABEL = 200
+"""Longer setting labels are cut and end in a digest (a file name has at most 255 bytes)."""
+
+
+def _label_value(value: Any) -> str:
+    """A value in a directory name: ``%`` and ``/`` escaped (``%25``, ``%2F``), so distinct."""
+    return _format_value(value).replace("%", "%25").replace("/", "%2F")
+
+
 def setting_label(setting: dict[str, Any]) -> str:
-    """The directory name of a setting: ``slam=false,duration=5``, or ``default``."""
+    """The directory name of a setting: ``slam=false,duration=5``, or ``default``.
+
+    A path value has its ``/`` written ``%2F`` (``map=%2Fruns%2F{seed}%2Fmap.yaml``); a
+    label longer than 200 bytes is cut and ends in ``~`` and 12 hex digits of its SHA-256.
+    """
     if not setting:
         return "default"
-    return ",".join(f"{k}={_format_value(v)}" for k, v in setting.items())
+    label = ",".join(f"{k}={_label_value(v)}" for k, v in setting.items())
+    if len(label.encode()) > _MAX_LABEL:
+        digest = hashlib.sha256(label.encode()).hexdigest()[:12]
+        head = label.encode()[: _MAX_LABEL - 13].decode(errors="ignore")
+        label = f"{head}~{digest}"
+    return label
 
 
 def domain_for(sweep_id: int, index: int) -> int:
@@ -276,6 +341,8 @@ class RunSpec:
         for key, value in self.options.items():
             if file and key not in _FILE_RUNNER_KEYS:
                 launch[key] = _format_value(value)
+            elif key == "map":  # as visnav run car --map
+                launch.update(map=str(value), use_map="true")
             else:
                 kwargs[RUN_OPTIONS[key].keyword] = value
         if launch:
@@ -324,10 +391,20 @@ def expand_runs(
 ) -> list[RunSpec]:
     """The cartesian product of settings and seeds, settings outermost.
 
+    A run's ``options`` are its setting's with ``{seed}`` in ``map`` replaced by its seed
+    (so ``sweep.json`` and ``sweep.csv`` name the map each run used); its setting label
+    keeps the template.
+
     Raises:
-        SweepError: the product is empty.
+        SweepError: the product is empty, or ``map`` is set for a scenario without one.
     """
     scenario = check_scenario(scenario)
+    if "map" in sets and not is_scenario_file(scenario) and scenario not in _MAP_SCENARIOS:
+        msg = (
+            f"--set map: the {scenario} scenario cannot localise in a saved map; map is "
+            f"for {', '.join(_MAP_SCENARIOS)} (visnav run car --map)"
+        )
+        raise SweepError(msg)
     keys = list(sets)
     settings = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*sets.values())]
     if not seeds or not settings:
@@ -338,5 +415,48 @@ def expand_runs(
         label = setting_label(setting)
         for seed in seeds:
             index = len(runs)
-            runs.append(RunSpec(index, scenario, label, setting, seed, domain_for(sweep_id, index)))
+            options = dict(setting)
+            if "map" in options and not is_scenario_file(scenario):
+                options["map"] = resolve_map(str(options["map"]), seed)
+            runs.append(RunSpec(index, scenario, label, options, seed, domain_for(sweep_id, index)))
     return runs
+
+
+def check_run_inputs(runs: Sequence[RunSpec]) -> None:
+    """Check the input files of ``runs`` before any runs: each run's ``map`` loads.
+
+    Each map is read as map_server reads it (YAML and image), so a missing or broken map
+    stops the sweep before anything runs, as other bad input does.
+
+    Raises:
+        SweepError: a run's map is missing or invalid; the line names the seed, the path,
+            and how many other runs' maps are missing too.
+    """
+    from visnav.errors import VisnavError  # noqa: PLC0415
+    from visnav.mapping.map_io import load_map  # noqa: PLC0415 - numpy, only with a map
+
+    problems: list[tuple[RunSpec, str]] = []
+    for spec in runs:
+        path = spec.options.get("map") if not is_scenario_file(spec.scenario) else None
+        if path is None:
+            continue
+        if not Path(path).is_file():
+            why = (
+                f"no map file {path}; expected the map.yaml of an earlier car run (visnav run "
+                f"car --seed {spec.seed} --out DIR writes DIR/map.yaml), or fix --set map"
+            )
+            problems.append((spec, why))
+            continue
+        try:
+            load_map(path)
+        except VisnavError as exc:
+            problems.append((spec, f"bad map: {exc}"))
+    if problems:
+        spec, why = problems[0]
+        others = ""
+        if len(problems) > 1:
+            seeds = sorted({s.seed for s, _ in problems[1:]})
+            shown = ", ".join(map(str, seeds[:10])) + (", ..." if len(seeds) > 10 else "")
+            others = f" (and {len(problems) - 1} more runs' maps, seeds {shown})"
+        msg = f"--set map: seed {spec.seed}: {why}{others}"
+        raise SweepError(msg)
