@@ -193,3 +193,15 @@ def test_report_renders_tables_and_every_plot_in_chromium(tmp_path: Path) -> Non
     assert "0.0500 / 0.0500" in rows[2]  # SLAM ATE
     assert "killed by signal SIGKILL" in facts["failures"][1]
     assert not math.isnan(np.mean([i["ink"] for i in facts["imgs"]]))
+
+
+def test_localization_column_uses_the_summarys_localization() -> None:
+    """SLAM in the loop and amcl runs report ``localization``; older runs SLAM's ATE."""
+    runs = [
+        {"status": "ok", "summary": {"localization": {"rmse_m": 0.02, "max_m": 0.09}}},
+        {"status": "ok", "summary": {"localization": {"rmse_m": 0.04, "max_m": 0.12}}},
+    ]
+    assert setting_stats(runs)["loc_text"] == "0.0300 / 0.1200"
+    old = [{"status": "ok", "summary": {"slam": {"ate_unaligned_rmse_m": 0.05}}}]
+    assert setting_stats(old)["loc_text"] == "0.0500 / 0.0500"
+    assert setting_stats([{"status": "failed"}])["loc_text"] == "- / -"

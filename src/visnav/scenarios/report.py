@@ -5,8 +5,9 @@ success rate's 95 % interval is Wilson's score interval (sound at 0 % and 100 % 
 few runs, where the normal approximation is not). Tables per setting: runs, failures,
 success rate with its interval, goals reached, collisions, path ratio (travelled /
 shortest), planning time (median over runs of each run's median, p95 over runs of each
-run's p95, largest max), SLAM ATE (aligned) and localization error (ATE unaligned, the
-map-frame error the navigation sees), real-time factor. Plots (matplotlib PNG embedded
+run's p95, largest max), SLAM ATE (aligned) and localization error (the summary's
+``localization``: the map-frame error the navigation sees, SLAM's or amcl's; RMSE mean
+over runs and the largest max), real-time factor. Plots (matplotlib PNG embedded
 as base64): success per setting, the distributions of path ratio and planning time, and
 every run's trajectory over its world's map. A table lists the failed runs with reason.
 """
@@ -95,7 +96,17 @@ def setting_stats(runs: Sequence[dict[str, Any]]) -> dict[str, Any]:
     plan_p95 = _values(runs, "planning_time_ms", "p95")
     plan_max = _values(runs, "planning_time_ms", "max")
     ate = _values(runs, "slam", "ate_rmse_m")
-    loc = _values(runs, "slam", "ate_unaligned_rmse_m")
+    # the localization the navigation saw (SLAM in the loop or amcl); older summaries
+    # without it: SLAM's unaligned ATE
+    loc = [
+        v
+        for run in runs
+        for v in (
+            _values([run], "localization", "rmse_m")
+            or _values([run], "slam", "ate_unaligned_rmse_m")
+        )
+    ]
+    loc_max = _values(runs, "localization", "max_m") or loc
     rtf = _values(runs, "real_time_factor")
     return {
         "runs": n,
@@ -114,7 +125,7 @@ def setting_stats(runs: Sequence[dict[str, Any]]) -> dict[str, Any]:
             for v, how in ((plan_med, "median"), (plan_p95, "p95"), (plan_max, "max"))
         ),
         "ate_text": f"{_fmt(ate, 'mean', 4)} / {_fmt(ate, 'max', 4)}",
-        "loc_text": f"{_fmt(loc, 'mean', 4)} / {_fmt(loc, 'max', 4)}",
+        "loc_text": f"{_fmt(loc, 'mean', 4)} / {_fmt(loc_max, 'max', 4)}",
         "rtf_text": f"{_fmt(rtf, 'mean', 2)} / {_fmt(rtf, 'min', 2)}",
     }
 
@@ -141,7 +152,7 @@ _COLUMNS = (
     ("ratio", "path ratio mean / median / max"),
     ("plan", "planning ms median / p95 / max"),
     ("ate", "SLAM ATE m mean / max"),
-    ("loc", "localization error m mean / max"),
+    ("loc", "localization m: RMSE mean / largest max"),
     ("rtf", "real-time factor mean / min"),
 )
 
