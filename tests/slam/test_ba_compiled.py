@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from visnav.slam import optimizer
 from visnav.slam._ba_kernels import ba_cost, levenberg_marquardt
 from visnav.slam.config import SlamConfig
 from visnav.slam.geometry import CHI2_MONO, CHI2_STEREO, se3_exp
@@ -16,6 +18,7 @@ from visnav.slam.optimizer import bundle_adjustment
 from visnav.slam.slam_map import SlamMap
 from visnav.slam.system import SlamSystem
 
+from ._ba_reference import relinearising_lm
 from .conftest import Sequence
 
 _CAM = np.array([500.0, 500.0, 320.0, 240.0, 40.0])
@@ -176,3 +179,67 @@ def test_matches_gtsam_on_a_real_map(short_sequence: Sequence) -> None:
         r = mc.keyframes[k].t_cw[:3, :3].T @ mg.keyframes[k].t_cw[:3, :3]
         assert np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))) < 0.01
     assert rc.outliers == rg.outliers
+
+
+def _same(new: tuple, old: tuple) -> None:
+    """Bit-identical poses, points and costs."""
+    for a, b in zip(new, old[:4], strict=True):
+        assert np.array_equal(a, b), "the reused linearisation changed the result"
+
+
+def test_reusing_the_linearisation_changes_nothing() -> None:
+    """Against the solver that re-linearised at every damping value (tests/slam/
+    _ba_reference.py): bit-identical results on perturbed, robust, garbage and behind-
+    the-camera problems, rejected tries included."""
+    rejected = 0
+    cases = []
+    for seed in range(6):
+        poses, pts, obs_kf, obs_pt, meas, stereo = _problem(seed, noise=0.3)
+        rng = np.random.default_rng(seed + 1)
+        start = poses.copy()
+        for k in range(1, len(start)):
+            start[k] = se3_exp(rng.normal(0.0, [0.05, 0.05, 0.05, 0.02, 0.02, 0.02])) @ start[k]
+        cases.append((start, pts + rng.normal(0.0, 0.05, pts.shape), obs_kf, obs_pt, meas, stereo))
+    poses, pts, obs_kf, obs_pt, meas, stereo = _problem(11)
+    garbage = meas.copy()
+    garbage[:, :2] = np.random.default_rng(0).uniform(0, 640, (len(meas), 2))
+    cases.append((poses, pts, obs_kf, obs_pt, garbage, stereo))
+    poses, pts, obs_kf, obs_pt, meas, stereo = _problem(7, noise=0.1)
+    pts = pts.copy()
+    pts[0], pts[1], pts[2, 2] = (0.1, 0.1, 1e-9), (0.0, 0.0, 0.0), -1.0
+    cases.append((poses, pts, obs_kf, obs_pt, meas, stereo))
+    for start, start_pts, obs_kf, obs_pt, meas, stereo in cases:
+        args = (start, start_pts, *_args(obs_kf, obs_pt, meas, stereo))
+        for fixed in (np.array([True, False, False, False]), np.array([True, True, False, True])):
+            old = relinearising_lm(*args, fixed, 10)
+            _same(levenberg_marquardt(*args, fixed, 10), old)
+            rejected += old[4]
+    assert rejected > 0  # the re-damping path ran
+
+
+def test_reusing_the_linearisation_changes_nothing_on_a_real_map(
+    short_sequence: Sequence, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every local window of a mapped sequence, solved by both: bit-identical."""
+    calls: list[int] = []
+    solve = optimizer.levenberg_marquardt_odometry
+
+    def both(*args: Any) -> tuple:
+        new = solve(*args)
+        assert len(args[12]) == 0  # no odometry factors in this map
+        old = relinearising_lm(*args[:12])
+        _same(new, old)
+        calls.append(old[4])
+        return new
+
+    monkeypatch.setattr(optimizer, "levenberg_marquardt_odometry", both)
+    slam = _mapped(short_sequence)
+    m = slam.map
+    ids = [kf.id for kf in m.keyframes]
+    levels = slam.extractor.inv_level_sigma2
+    for end in range(3, len(ids) + 1):
+        r = bundle_adjustment(
+            m, slam.camera, ids[max(end - 6, 0) : end], inv_sigma2_levels=levels, iterations=10
+        )
+        assert r.ok, r.error
+    assert len(calls) == len(ids) - 2

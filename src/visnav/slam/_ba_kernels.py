@@ -9,7 +9,13 @@ depth are virtual-stereo ``(u, v, u_right)`` measurements, the others monocular
 ``(u, v)``; each is whitened by ``inv_sigma2`` of its pyramid level and robustified
 by a Huber kernel on the whitened error (thresholds ``sqrt(chi2 95 %)``), weights
 recomputed at every linearisation (IRLS). Damping is Marquardt's: ``lambda`` times
-the diagonal of the normal equations, raised tenfold on a rejected step.
+the diagonal of the normal equations, raised tenfold on a rejected step. The normal
+equations are built once per linearisation point (:func:`_linearise`); a rejected step
+only re-damps and re-solves them (:func:`_damped_step`), as gtsam's inner loop does.
+
+:func:`levenberg_marquardt_odometry` adds relative-pose factors between poses (wheel
+odometry between consecutive keyframes, :mod:`visnav.slam.odometry_prior`) to the
+reduced system; they link poses only, so the Schur complement is unchanged.
 
 The kernels are sequential, so the result is deterministic. Everything is in float64.
 """
@@ -24,7 +30,7 @@ import numpy as np
 if TYPE_CHECKING:
     from numpy.typing import NDArray
 
-__all__ = ["ba_cost", "levenberg_marquardt"]
+__all__ = ["ba_cost", "levenberg_marquardt", "levenberg_marquardt_odometry", "odometry_cost"]
 
 _MIN_Z = 1e-3
 """Points closer than this (m, or behind the camera) are not linearised (a fixed cost)."""
@@ -197,11 +203,10 @@ def _inv3(m: NDArray[np.float64], out: NDArray[np.float64]) -> None:  # pragma: 
 
 
 @numba.njit(cache=True)
-def _step(
+def _linearise(
     poses: NDArray[np.float64],
     points: NDArray[np.float64],
     obs_kf: NDArray[np.int64],
-    obs_pt: NDArray[np.int64],
     meas: NDArray[np.float64],
     stereo: NDArray[np.bool_],
     info: NDArray[np.float64],
@@ -212,28 +217,36 @@ def _step(
     n_free: int,
     order: NDArray[np.int64],
     starts: NDArray[np.int64],
-    lam: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:  # pragma: no cover - compiled
-    """One damped Gauss-Newton step: ``(pose twists (F, 6), point steps (P, 3), ok)``."""
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.bool_],
+    NDArray[np.float64],
+    NDArray[np.float64],
+]:  # pragma: no cover - compiled
+    """The undamped normal equations at one linearisation point (IRLS weights included).
+
+    Returns ``(hpp (6F, 6F), bp (6F,), hpl (O, 6, 3), valid (O,), hll (P, 3, 3), bl (P, 3))``:
+    the pose block, the pose/point blocks per observation, the point blocks and the
+    right-hand sides (``-J^T W e``). ``valid`` marks observations in front of their camera.
+    """
     n_obs = len(obs_kf)
     n_pts = len(points)
     dim = 6 * n_free
     hpp = np.zeros((dim, dim))
-    hpp_diag = np.zeros(dim)
     bp = np.zeros(dim)
     hpl = np.zeros((n_obs, 6, 3))
     valid = np.zeros(n_obs, dtype=np.bool_)
-    hll_inv = np.zeros((n_pts, 3, 3))
+    hll = np.zeros((n_pts, 3, 3))
     bl = np.zeros((n_pts, 3))
     pc = np.empty(3)
     e = np.empty(3)
     jp = np.zeros((3, 6))
     jl = np.zeros((3, 3))
     dc = np.zeros((3, 3))
-    hll = np.zeros((3, 3))
-    a = np.zeros((6, 3))
     for pt in range(n_pts):
-        hll[:] = 0.0
+        h = hll[pt]
         for idx in range(starts[pt], starts[pt + 1]):
             o = order[idx]
             st = stereo[o]
@@ -248,7 +261,7 @@ def _step(
                     s = 0.0
                     for r in range(3):
                         s += jl[r, i] * jl[r, j]
-                    hll[i, j] += w * s
+                    h[i, j] += w * s
                 bl[pt, i] -= w * (jl[0, i] * e[0] + jl[1, i] * e[1] + jl[2, i] * e[2])
             f = free[obs_kf[o]]
             if f < 0:
@@ -266,11 +279,41 @@ def _step(
                     for r in range(3):
                         s += jp[r, i] * jl[r, j]
                     hpl[o, i, j] = w * s
+    return hpp, bp, hpl, valid, hll, bl
+
+
+@numba.njit(cache=True)
+def _damped_step(
+    hpp0: NDArray[np.float64],
+    bp0: NDArray[np.float64],
+    hpl: NDArray[np.float64],
+    valid: NDArray[np.bool_],
+    hll: NDArray[np.float64],
+    bl: NDArray[np.float64],
+    obs_kf: NDArray[np.int64],
+    free: NDArray[np.int64],
+    n_free: int,
+    order: NDArray[np.int64],
+    starts: NDArray[np.int64],
+    lam: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:  # pragma: no cover - compiled
+    """Damp the normal equations of :func:`_linearise` by ``lam`` and solve them.
+
+    Returns ``(pose twists (F, 6), point steps (P, 3), ok)``; the inputs are not modified,
+    so one linearisation serves every damping value tried at that point.
+    """
+    n_pts = len(hll)
+    dim = 6 * n_free
+    hpp = hpp0.copy()
+    bp = bp0.copy()
+    hll_inv = np.zeros((n_pts, 3, 3))
+    hd = np.zeros((3, 3))
+    a = np.zeros((6, 3))
+    for pt in range(n_pts):
+        hd[:] = hll[pt]
         for r in range(3):
-            hll[r, r] += lam * hll[r, r] + 1e-12
-        _inv3(hll, hll_inv[pt])  # a point nothing constrains has a zero right-hand side: no step
-    for i in range(dim):
-        hpp_diag[i] = hpp[i, i]
+            hd[r, r] += lam * hd[r, r] + 1e-12
+        _inv3(hd, hll_inv[pt])  # a point nothing constrains has a zero right-hand side: no step
     # Schur complement: S = Hpp - sum_pt Hpl Hll^-1 Hpl^T, b = bp - sum_pt Hpl Hll^-1 bl
     for pt in range(n_pts):
         for i1 in range(starts[pt], starts[pt + 1]):
@@ -300,7 +343,7 @@ def _step(
                             a[r, 0] * h2[c, 0] + a[r, 1] * h2[c, 1] + a[r, 2] * h2[c, 2]
                         )
     for i in range(dim):
-        hpp[i, i] += lam * hpp_diag[i] + 1e-12
+        hpp[i, i] += lam * hpp0[i, i] + 1e-12
     dposes = np.zeros((n_free, 6))
     dpoints = np.zeros((n_pts, 3))
     if dim > 0:
@@ -332,7 +375,106 @@ def _step(
 
 
 @numba.njit(cache=True)
-def levenberg_marquardt(
+def _adjoint(t: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """(6, 6) adjoint of a transform for twists ``(rho, phi)``: ``[[R, [t]x R], [0, R]]``."""
+    out = np.zeros((6, 6))
+    r = t[:3, :3]
+    tx = np.zeros((3, 3))
+    tx[0, 1], tx[0, 2], tx[1, 0] = -t[2, 3], t[1, 3], t[2, 3]
+    tx[1, 2], tx[2, 0], tx[2, 1] = -t[0, 3], -t[1, 3], t[0, 3]
+    out[:3, :3] = r
+    out[:3, 3:] = tx @ r
+    out[3:, 3:] = r
+    return out
+
+
+@numba.njit(cache=True)
+def _edge_error(
+    pose_a: NDArray[np.float64], pose_b: NDArray[np.float64], z_inv: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover - compiled
+    """``(r, E)``: ``E = Z^-1 T_a T_b^-1`` and its twist ``r`` (translation, rotation vector).
+
+    ``Z`` is the measured pose of camera ``b`` in camera ``a``'s frame; ``T`` are ``T_cw``.
+    """
+    inv_b = np.eye(4)
+    rt = pose_b[:3, :3].T
+    inv_b[:3, :3] = rt
+    inv_b[:3, 3] = -(rt @ pose_b[:3, 3])
+    e = z_inv @ pose_a @ inv_b
+    r = np.empty(6)
+    r[0], r[1], r[2] = e[0, 3], e[1, 3], e[2, 3]
+    v0, v1, v2 = 0.5 * (e[2, 1] - e[1, 2]), 0.5 * (e[0, 2] - e[2, 0]), 0.5 * (e[1, 0] - e[0, 1])
+    sin = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    cos = 0.5 * (e[0, 0] + e[1, 1] + e[2, 2] - 1.0)
+    f = np.arctan2(sin, cos) / sin if sin > 1e-12 else 1.0
+    r[3], r[4], r[5] = v0 * f, v1 * f, v2 * f
+    return r, e
+
+
+@numba.njit(cache=True)
+def odometry_cost(
+    poses: NDArray[np.float64],
+    edge_a: NDArray[np.int64],
+    edge_b: NDArray[np.int64],
+    edge_zinv: NDArray[np.float64],
+    edge_w: NDArray[np.float64],
+) -> float:  # pragma: no cover - compiled
+    """Cost ``sum r^T W r / 2`` of relative-pose (odometry) factors.
+
+    Args:
+        poses: (K, 4, 4) ``T_cw``.
+        edge_a: (E,) pose index of each factor's first camera.
+        edge_b: (E,) pose index of its second camera.
+        edge_zinv: (E, 4, 4) inverse of the measured pose of ``b`` in ``a``'s frame.
+        edge_w: (E, 6) diagonal information of the factor's twist (rho, phi).
+    """
+    total = 0.0
+    for n in range(len(edge_a)):
+        r, _ = _edge_error(poses[edge_a[n]], poses[edge_b[n]], edge_zinv[n])
+        for i in range(6):
+            total += 0.5 * edge_w[n, i] * r[i] * r[i]
+    return total
+
+
+@numba.njit(cache=True)
+def _add_odometry(
+    poses: NDArray[np.float64],
+    edge_a: NDArray[np.int64],
+    edge_b: NDArray[np.int64],
+    edge_zinv: NDArray[np.float64],
+    edge_w: NDArray[np.float64],
+    free: NDArray[np.int64],
+    hpp: NDArray[np.float64],
+    bp: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """Add the relative-pose factors' normal equations to the pose block, in place.
+
+    With left twists ``T <- exp(xi) T`` the error ``E = Z^-1 T_a T_b^-1`` moves by
+    ``Ad(Z^-1) xi_a`` and by ``-Ad(E) xi_b`` (first order).
+    """
+    for n in range(len(edge_a)):
+        fa, fb = free[edge_a[n]], free[edge_b[n]]
+        if fa < 0 and fb < 0:
+            continue
+        r, e = _edge_error(poses[edge_a[n]], poses[edge_b[n]], edge_zinv[n])
+        ja = _adjoint(edge_zinv[n])
+        jb = -_adjoint(e)
+        w = edge_w[n]
+        wr = w * r
+        for fi, ji in ((fa, ja), (fb, jb)):
+            if fi < 0:
+                continue
+            bi = 6 * fi
+            bp[bi : bi + 6] -= ji.T @ wr
+            for fj, jj in ((fa, ja), (fb, jb)):
+                if fj < 0:
+                    continue
+                bj = 6 * fj
+                hpp[bi : bi + 6, bj : bj + 6] += ji.T @ (w[:, None] * jj)
+
+
+@numba.njit(cache=True)
+def levenberg_marquardt_odometry(
     poses: NDArray[np.float64],
     points: NDArray[np.float64],
     obs_kf: NDArray[np.int64],
@@ -345,8 +487,14 @@ def levenberg_marquardt(
     k_stereo: float,
     fixed: NDArray[np.bool_],
     iterations: int,
+    edge_a: NDArray[np.int64],
+    edge_b: NDArray[np.int64],
+    edge_zinv: NDArray[np.float64],
+    edge_w: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:  # pragma: no cover
-    """Optimise the poses not ``fixed`` and every point; ``(poses, points, cost0, cost)``.
+    """:func:`levenberg_marquardt` with relative-pose (odometry) factors between poses.
+
+    The factors are those of :func:`odometry_cost`; they have no robust kernel.
 
     The inputs are not modified. ``iterations`` counts accepted or final steps; a
     rejected step raises the damping tenfold and is tried again (at most 10 times per
@@ -369,23 +517,32 @@ def levenberg_marquardt(
     cur_poses = poses.copy()
     cur_points = points.copy()
     args = (obs_kf, obs_pt, meas, stereo, info, cam, k_mono, k_stereo)
-    cost0 = ba_cost(cur_poses, cur_points, *args)
+    edges = (edge_a, edge_b, edge_zinv, edge_w)
+    cost0 = ba_cost(cur_poses, cur_points, *args) + odometry_cost(cur_poses, *edges)
     cost = cost0
     lam = 1e-5
     for _ in range(iterations):
         accepted = False
         decrease = 0.0
+        hpp, bp, hpl, valid, hll, bl = _linearise(
+            cur_poses, cur_points, obs_kf, meas, stereo, info, cam, k_mono, k_stereo,
+            free, n_free, order, starts,
+        )  # fmt: skip
+        _add_odometry(cur_poses, *edges, free, hpp, bp)
         for _try in range(10):
-            dposes, dpoints, ok = _step(
-                cur_poses, cur_points, *args, free, n_free, order, starts, lam
+            dposes, dpoints, ok = _damped_step(
+                hpp, bp, hpl, valid, hll, bl, obs_kf, free, n_free, order, starts, lam
             )
+            if not ok:  # an indefinite system: damp more at the same linearisation point
+                lam *= 10.0
+                continue
             new_poses = cur_poses.copy()
             for k in range(n_kf):
                 if free[k] >= 0:
                     new_poses[k] = _exp(dposes[free[k]]) @ cur_poses[k]
             new_points = cur_points + dpoints
-            new_cost = ba_cost(new_poses, new_points, *args)
-            if ok and new_cost <= cost:
+            new_cost = ba_cost(new_poses, new_points, *args) + odometry_cost(new_poses, *edges)
+            if new_cost <= cost:
                 accepted = True
                 decrease = cost - new_cost
                 cur_poses, cur_points, cost = new_poses, new_points, new_cost
@@ -395,3 +552,32 @@ def levenberg_marquardt(
         if not accepted or decrease <= 1e-5 * cost:
             break
     return cur_poses, cur_points, cost0, cost
+
+
+@numba.njit(cache=True)
+def levenberg_marquardt(
+    poses: NDArray[np.float64],
+    points: NDArray[np.float64],
+    obs_kf: NDArray[np.int64],
+    obs_pt: NDArray[np.int64],
+    meas: NDArray[np.float64],
+    stereo: NDArray[np.bool_],
+    info: NDArray[np.float64],
+    cam: NDArray[np.float64],
+    k_mono: float,
+    k_stereo: float,
+    fixed: NDArray[np.bool_],
+    iterations: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:  # pragma: no cover
+    """Optimise the poses not ``fixed`` and every point; ``(poses, points, cost0, cost)``.
+
+    The inputs are not modified. ``iterations`` counts accepted or final steps; a
+    rejected step raises the damping tenfold and is tried again (at most 10 times per
+    iteration, as gtsam's inner loop). Stops early when the cost falls by less than
+    1e-5 of itself (gtsam's ``relativeErrorTol``).
+    """
+    no_edges = np.zeros(0, dtype=np.int64)
+    return levenberg_marquardt_odometry(
+        poses, points, obs_kf, obs_pt, meas, stereo, info, cam, k_mono, k_stereo, fixed,
+        iterations, no_edges, no_edges, np.zeros((0, 4, 4)), np.zeros((0, 6)),
+    )  # fmt: skip
