@@ -47,7 +47,7 @@ def test_a_failed_local_bundle_adjustment_is_counted_and_warned(
         monkeypatch.setattr(optimizer, "_gtsam", lambda: _FailingGtsam(real))
         monkeypatch.setattr(optimizer, "MAX_DENSE_KEYFRAMES", -1)
     else:
-        monkeypatch.setattr(optimizer, "levenberg_marquardt", _diverging)
+        monkeypatch.setattr(optimizer, "levenberg_marquardt_odometry", _diverging)
     slam = SlamSystem(seq.camera, SlamConfig(n_features=400), initial_pose=seq.poses[0])
     warnings: list[str] = []
     for i in range(25):

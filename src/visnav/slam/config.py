@@ -53,9 +53,19 @@ class SlamConfig:
 
     Odometry (optional ``odom_pose`` per frame): predicts the motion instead of
     the constant-velocity model, and after ``reinit_after_lost`` lost frames
-    without relocalisation restarts tracking at the odometry-predicted pose
-    (the new part of the map joins the old one when a loop or relocalisation
-    links them).
+    without relocalisation restarts tracking at the odometry-predicted pose,
+    corrected while lost by ICP on the depth (:mod:`visnav.slam.restart`; the
+    new part of the map joins the old one when a loop or relocalisation links
+    them, its first keyframe held in local bundle adjustment until then). With
+    ``odom_prior`` the odometry's motion since the last tracked
+    frame is also a Gaussian prior in the tracked pose's optimisation, with standard
+    deviations ``odometry_sigma_t`` m + ``odometry_sigma_t_rel`` of the distance moved (each
+    translation axis) and ``odometry_sigma_r_deg`` + ``odometry_sigma_r_rel`` of the angle
+    turned + ``odometry_sigma_r_per_m`` rad per metre moved (each rotation axis; amcl's
+    ``odom_alpha1`` / ``odom_alpha2`` in spirit: unequal wheel radii turn the odometry's
+    heading while it drives straight): it holds the pose where the matched points do not
+    (all of them far down a corridor: a sideways shift and a turn then look alike), and
+    links consecutive keyframes in local bundle adjustment.
 
     Monocular (``sensor="mono"``, :mod:`visnav.slam.monocular`): keypoints get no
     depth; the map starts from two views (median parallax ``init_min_parallax_deg``,
@@ -116,6 +126,12 @@ class SlamConfig:
     icp_stride: int = 6
     icp_keyframes: int = 8
     reinit_after_lost: int = 5
+    odom_prior: bool = True
+    odometry_sigma_t: float = 0.005
+    odometry_sigma_t_rel: float = 0.05
+    odometry_sigma_r_deg: float = 0.1
+    odometry_sigma_r_rel: float = 0.1
+    odometry_sigma_r_per_m: float = 0.0
     sensor: Literal["rgbd", "mono"] = "rgbd"
     mono_scale: Literal["depth", "odometry"] = "depth"
     init_min_parallax_deg: float = 1.0
@@ -135,6 +151,18 @@ class SlamConfig:
         if not self.scale_factor > 1.0:
             text = f"scale_factor is {self.scale_factor!r}: expected a number > 1 (ORB: 1.2)"
             raise SlamInputError(text)
+        for name in ("odometry_sigma_t", "odometry_sigma_r_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and value > 0.0 and value < float("inf")):
+                default = getattr(SlamConfig, name)
+                text = f"{name} is {value!r}: expected a number > 0 (default {default})"
+                raise SlamInputError(text)
+        for name in ("odometry_sigma_t_rel", "odometry_sigma_r_rel", "odometry_sigma_r_per_m"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and value >= 0.0 and value < float("inf")):
+                default = getattr(SlamConfig, name)
+                text = f"{name} is {value!r}: expected a number >= 0 (default {default})"
+                raise SlamInputError(text)
 
 
 def check_mono_settings(sensor: str, mono_scale: str) -> None:

@@ -20,6 +20,7 @@ __all__ = [
     "CHI2_MONO",
     "CHI2_STEREO",
     "PoseObservations",
+    "PosePrior",
     "inverse",
     "level_pose",
     "optimize_pose",
@@ -29,6 +30,7 @@ __all__ = [
     "project",
     "rotation_angle",
     "se3_exp",
+    "so3_log",
     "transform",
 ]
 
@@ -77,6 +79,24 @@ def se3_exp(xi: FloatArray) -> FloatArray:
     out = np.eye(4)
     out[:3, :3] = r
     out[:3, 3] = v @ rho
+    return out
+
+
+def so3_log(r: FloatArray) -> FloatArray:
+    """Rotation vector (axis times angle, rad) of a 3x3 rotation, accurate near 0."""
+    v = 0.5 * np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    sin = float(np.linalg.norm(v))
+    cos = 0.5 * (float(np.trace(r)) - 1.0)
+    theta = float(np.arctan2(sin, cos))
+    if sin < 1e-12:
+        if cos > 0.0:
+            return v  # the identity (and its first-order neighbourhood)
+        # theta = pi: the axis is the column of R + I with the largest norm
+        m = r + np.eye(3)
+        axis = m[:, int(np.argmax(np.linalg.norm(m, axis=0)))]
+        half_turn: FloatArray = np.pi * axis / np.linalg.norm(axis)
+        return half_turn
+    out: FloatArray = v * (theta / sin)
     return out
 
 
@@ -139,6 +159,27 @@ class PoseObservations:
     inv_sigma2: FloatArray
 
 
+@dataclass(frozen=True)
+class PosePrior:
+    """A Gaussian prior on a camera pose (wheel odometry's prediction, for example).
+
+    Its residual at a pose ``T`` is the left twist ``log(T T_prior^-1)`` (translation
+    first, in the camera frame, as the optimisation's perturbations), to first order.
+
+    Attributes:
+        t_cw: the predicted world -> camera pose.
+        information: (6, 6) inverse covariance of that twist.
+    """
+
+    t_cw: FloatArray
+    information: FloatArray
+
+    def residual(self, t_cw: FloatArray) -> FloatArray:
+        """The twist from the prior to ``t_cw`` (6,)."""
+        e = t_cw @ inverse(self.t_cw)
+        return np.concatenate([e[:3, 3], so3_log(e[:3, :3])])
+
+
 def _residuals(
     cam: CameraIntrinsics,
     t: FloatArray,
@@ -194,6 +235,7 @@ def optimize_pose(
     *,
     rounds: int = 4,
     iterations: int = 5,
+    prior: PosePrior | None = None,
 ) -> tuple[FloatArray, BoolArray]:
     """Refine a camera pose on 3D-2D(-depth) matches, rejecting outliers.
 
@@ -209,6 +251,9 @@ def optimize_pose(
         obs: the matches.
         rounds: outlier classification rounds.
         iterations: Gauss-Newton iterations per round (fewer when converged).
+        prior: an optional Gaussian prior on the pose (never an outlier): it holds the
+            directions the matches leave weak, e.g. a sideways shift traded against a
+            turn when every matched point is far away.
 
     Returns:
         ``(t_cw, inliers)``: the refined pose and an (N,) inlier mask.
@@ -238,6 +283,9 @@ def optimize_pose(
             w_rows = np.repeat(w, 3)
             h = (jac * w_rows[:, None]).T @ jac
             g = jac.T @ (w_rows * e.reshape(-1))
+            if prior is not None:
+                h = h + prior.information
+                g = g + prior.information @ prior.residual(t)
             try:
                 dx = -np.linalg.solve(h + 1e-9 * np.eye(6), g)
             except np.linalg.LinAlgError:

@@ -36,8 +36,13 @@ max_frame_rate`` after the last processed one (rtabmap's ``Rtabmap/DetectionRate
 and ORB-SLAM's frame skipping serve the same purpose): the choice depends on the
 stamps alone, never on the wall clock, so a run stays deterministic. With
 ``odometry_prior`` (default) the ``odom -> base_frame`` motion predicts the camera
-motion and restarts tracking after a loss; without it tracking is purely visual
-(constant-velocity model) and odometry only anchors the map frame at the first frame.
+motion, holds the tracked pose and the local bundle adjustment's keyframes as a
+Gaussian prior (standard deviations ``odometry_sigma_t`` m + ``odometry_sigma_t_rel``
+per metre moved, ``odometry_sigma_r_deg`` + ``odometry_sigma_r_rel`` per radian
+turned + ``odometry_sigma_r_per_m`` rad per metre moved;
+:mod:`visnav.slam.odometry_prior`) and restarts tracking after a loss; without it
+tracking is purely visual (constant-velocity model) and odometry only anchors the
+map frame at the first frame.
 
 SLAM in the loop (``publish_tf``): ``map -> odom`` is refreshed from tracked frames only.
 While tracking is lost it is not republished, so its stamp ages and a navigation stack
@@ -197,6 +202,11 @@ class SlamNode(Node):
             sensor=prm.sensor,  # type: ignore[arg-type]
             mono_scale=prm.mono_scale,  # type: ignore[arg-type]
             final_global_ba=False,
+            odometry_sigma_t=prm.odometry_sigma_t,
+            odometry_sigma_t_rel=prm.odometry_sigma_t_rel,
+            odometry_sigma_r_deg=prm.odometry_sigma_r_deg,
+            odometry_sigma_r_rel=prm.odometry_sigma_r_rel,
+            odometry_sigma_r_per_m=prm.odometry_sigma_r_per_m,
         )
         self.worker: SlamWorker | None = None
         self._worker_failure: str | None = None

@@ -32,7 +32,24 @@ class SlamParams:
     result_latency: float = param(0.0, description="s of stamp time a result is applied after")
     set_initial_pose: bool = param(False, description="start at initial_pose.x/y/yaw")
     max_frame_rate: float = param(0.0, description="Hz of processed frames (0: every frame)")
-    odometry_prior: bool = param(True, description="odom -> base predicts the camera motion")
+    odometry_prior: bool = param(
+        True, description="odom -> base predicts and constrains the camera motion"
+    )
+    odometry_sigma_t: float = param(
+        SlamConfig.odometry_sigma_t, description="m: odometry sigma per axis at rest"
+    )
+    odometry_sigma_t_rel: float = param(
+        SlamConfig.odometry_sigma_t_rel, description="odometry sigma per m moved"
+    )
+    odometry_sigma_r_deg: float = param(
+        SlamConfig.odometry_sigma_r_deg, description="deg: odometry sigma per axis at rest"
+    )
+    odometry_sigma_r_rel: float = param(
+        SlamConfig.odometry_sigma_r_rel, description="odometry sigma per radian turned"
+    )
+    odometry_sigma_r_per_m: float = param(
+        SlamConfig.odometry_sigma_r_per_m, description="rad: odometry heading sigma per m moved"
+    )
     force_3dof: bool = param(
         False, description="map -> odom keeps the base level: x, y, yaw only (Reg/Force3DoF)"
     )

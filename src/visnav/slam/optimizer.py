@@ -18,15 +18,17 @@ gtsam poses are camera poses ``T_wc`` (camera -> world); the map keeps ``T_cw``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from visnav.slam._ba_kernels import levenberg_marquardt
+from visnav.slam._ba_kernels import levenberg_marquardt_odometry
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.geometry import CHI2_MONO, CHI2_STEREO, inverse, orthonormalize, transform
+from visnav.slam.odometry_prior import OdometryEdge
 from visnav.slam.slam_map import SlamMap
 
 __all__ = [
@@ -133,6 +135,7 @@ def bundle_adjustment(
     iterations: int = 10,
     min_observations: int = 1,
     max_dense_keyframes: int | None = None,
+    odometry: Sequence[OdometryEdge] = (),
 ) -> BaResult:
     """Optimise the poses of ``keyframe_ids`` and the points they observe, in place.
 
@@ -151,6 +154,8 @@ def bundle_adjustment(
         min_observations: points with fewer observations in the problem are left out.
         max_dense_keyframes: the most free poses the compiled solver takes (None:
             :data:`MAX_DENSE_KEYFRAMES`).
+        odometry: relative-pose factors between keyframes from the robot's odometry
+            (those with a keyframe outside the problem, or both held, are left out).
 
     Returns:
         Sizes, outliers removed and the error before/after; a solver failure is in
@@ -175,7 +180,7 @@ def bundle_adjustment(
         fixed.add(min(involved))
     if not obs_list:
         return BaResult(len(local), len(fixed), 0, 0, 0, 0.0, 0.0)
-    problem = _Problem(slam_map, sorted(involved), fixed, obs_list)
+    problem = _Problem(slam_map, sorted(involved), fixed, obs_list, odometry)
     sizes = (len(local), len(fixed), len(problem.points), len(obs_list))
     limit = MAX_DENSE_KEYFRAMES if max_dense_keyframes is None else max_dense_keyframes
     if len(involved - fixed) <= limit:
@@ -198,10 +203,17 @@ class _Problem:
         keyframes: list[int],
         fixed: set[int],
         obs_list: list[tuple[int, int, int]],
+        odometry: Sequence[OdometryEdge] = (),
     ) -> None:
         self.map = slam_map
         self.keyframes = np.asarray(keyframes, dtype=np.int64)
         self.fixed = np.asarray([k in fixed for k in keyframes], dtype=bool)
+        index = {k: n for n, k in enumerate(keyframes)}
+        self.odometry = [
+            (index[e.i], index[e.j], e)
+            for e in odometry
+            if e.i in index and e.j in index and not (e.i in fixed and e.j in fixed)
+        ]
         arr = np.asarray(obs_list, dtype=np.int64)
         self.points, self.obs_pt = np.unique(arr[:, 2], return_inverse=True)
         self.obs_kf = np.searchsorted(self.keyframes, arr[:, 0])
@@ -236,7 +248,16 @@ def _solve_compiled(
     meas = np.column_stack([pr.uv, np.where(pr.stereo, pr.u_right, 0.0)])
     info = np.asarray(inv_sigma2_levels, dtype=np.float64)[pr.octave]
     camv = np.array([cam.fx, cam.fy, cam.cx, cam.cy, cam.bf])
-    t_cw, positions, before, after = levenberg_marquardt(
+    n_edges = len(pr.odometry)
+    edge_a = np.array([a for a, _, _ in pr.odometry], dtype=np.int64).reshape(n_edges)
+    edge_b = np.array([b for _, b, _ in pr.odometry], dtype=np.int64).reshape(n_edges)
+    edge_zinv = np.ascontiguousarray(
+        np.array([inverse(e.t_ij) for _, _, e in pr.odometry]).reshape(n_edges, 4, 4)
+    )
+    edge_w = np.array(
+        [[e.sigma_t**-2] * 3 + [e.sigma_r**-2] * 3 for _, _, e in pr.odometry]
+    ).reshape(n_edges, 6)
+    t_cw, positions, before, after = levenberg_marquardt_odometry(
         pr.t_cw(),
         pr.map.positions[pr.points].astype(np.float64),
         pr.obs_kf,
@@ -249,6 +270,10 @@ def _solve_compiled(
         float(np.sqrt(CHI2_STEREO)),
         pr.fixed,
         int(iterations),
+        edge_a,
+        edge_b,
+        edge_zinv,
+        edge_w,
     )
     if not (np.isfinite(after) and np.isfinite(t_cw).all() and np.isfinite(positions).all()):
         return before, before, f"bundle adjustment of {len(pr.keyframes)} keyframes diverged"
@@ -283,6 +308,10 @@ def _solve_gtsam(
         else:
             meas2 = np.array([u, v])
             graph.add(gtsam.GenericProjectionFactorCal3_S2(meas2, models.mono[lvl], k, key, k_mono))
+    for a, b, edge in pr.odometry:  # gtsam's Pose3 tangent is (rotation, translation)
+        sigmas = np.array([edge.sigma_r] * 3 + [edge.sigma_t] * 3)
+        model = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+        graph.add(gtsam.BetweenFactorPose3(a, b, gtsam.Pose3(edge.t_ij), model))
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(int(iterations))
     params.setVerbosityLM("SILENT")

@@ -38,6 +38,9 @@ class Keyframe:
         loop_edges: keyframe ids this one closed a loop with.
         bow: the bag-of-words vector (None before the vocabulary exists).
         cloud: sub-sampled camera-frame points and colours for the dense cloud.
+        odom_pose: ``T_odom_camera`` from the robot's odometry at the keyframe's time
+            (None without odometry): local bundle adjustment links consecutive
+            keyframes by the odometry's motion between them.
     """
 
     id: int
@@ -49,6 +52,7 @@ class Keyframe:
     bow: NDArray[np.float32] | None = None
     cloud: tuple[NDArray[np.float32], NDArray[np.uint8]] | None = None
     bad: bool = False
+    odom_pose: FloatArray | None = None
 
     @property
     def t_wc(self) -> FloatArray:

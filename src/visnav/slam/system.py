@@ -33,14 +33,15 @@ from visnav.slam.dense import DenseTracker
 from visnav.slam.features import Frame, OrbExtractor
 from visnav.slam.geometry import (
     PoseObservations,
+    PosePrior,
     inverse,
     optimize_pose,
     orthonormalize,
     pose_information,
     project,
-    rotation_angle,
 )
 from visnav.slam.inputs import STAGES, Stopwatch, prepare_inputs, virtual_baseline
+from visnav.slam.keyframe_rule import need_keyframe
 from visnav.slam.loop_closing import LoopCloser
 from visnav.slam.mapping import create_points, cull_recent_points, fuse_points
 from visnav.slam.matching import search_by_projection
@@ -50,8 +51,10 @@ from visnav.slam.monocular import (
     mono_ba_window,
     triangulate_new_points,
 )
+from visnav.slam.odometry_prior import odometry_edges, odometry_prior
 from visnav.slam.optimizer import BaResult, LoopConstraint, bundle_adjustment
 from visnav.slam.place_recognition import Localization, localize_in_map
+from visnav.slam.restart import RestartAnchor, follow_depth, predict_from_odometry
 from visnav.slam.slam_map import Keyframe, SlamMap
 from visnav.slam.system_outputs import FrameRecord as _FrameRecord
 from visnav.slam.system_outputs import SystemOutputs
@@ -133,8 +136,12 @@ class SlamSystem(SystemOutputs):
         self._last_kf_frame = 0
         self._just_relocalized = False
         self._lost_frames = 0
+        self._anchor = RestartAnchor()
         self._odom_last: FloatArray | None = None
         self._odom_pred: FloatArray | None = None
+        self._odom_pose_last: FloatArray | None = None
+        self._prior: PosePrior | None = None
+        self._odom_now: FloatArray | None = None
         self._mono: MonoInitializer | None = None
         if cfg.sensor == "mono":
             self._mono = MonoInitializer(
@@ -188,7 +195,9 @@ class SlamSystem(SystemOutputs):
         self.n_frames += 1
         kf_added = loop = reloc = reinit = False
         inliers = 0
-        self._odom_pred = self._predict_from_odometry(odom_pose)
+        self._odom_pred = predict_from_odometry(odom_pose, self._odom_last)
+        self._odom_now = None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64)
+        self._prior = odometry_prior(self.config, self._odom_pred, odom_pose, self._odom_pose_last)
         if self.state == "uninitialized" and self._mono is not None:
             sw.start("mapping")
             mono_depth = None if depth is None else depth_m
@@ -214,6 +223,7 @@ class SlamSystem(SystemOutputs):
                 ok = self._track_motion(frame, sw) or self._track_reference(frame)
             if not ok:
                 sw.start("matching")
+                self._prior = None  # a relocalised pose owes nothing to the odometry
                 ok = self._relocalize(frame)
                 reloc = ok and self.state == "lost"
                 if ok:
@@ -232,7 +242,8 @@ class SlamSystem(SystemOutputs):
                 self._just_relocalized = reloc
                 sw.start("pose")
                 self._refine_dense(frame, depth_m)
-                if self._need_keyframe(frame, inliers):
+                since = self.n_frames - self._last_kf_frame
+                if need_keyframe(self.config, self.map, frame, inliers, self._ref_kf, since):
                     sw.start("mapping")
                     loop = self._insert_keyframe(frame, depth_m, colour, sw)
                     kf_added = True
@@ -246,16 +257,19 @@ class SlamSystem(SystemOutputs):
                 self._lost_frames += 1
                 self._velocity = None
                 self._last = None
+                followed = follow_depth(
+                    self.dense, self.map, self._ref_kf, depth_m, self._odom_pred, odom_pose
+                )
+                if followed is not None:  # the odometry's prediction corrected on the depth
+                    self._odom_pred, self._odom_last = followed
                 if (
                     self._odom_pred is not None
                     and self._lost_frames >= self.config.reinit_after_lost
                     and self._reinitialize(frame, depth_m, colour, self._odom_pred)
                 ):
                     reinit = True
-                    warnings.append(
-                        f"frame {stamp_ns}: tracking restarted at the odometry pose after "
-                        f"{self._lost_frames - 1} lost frames"
-                    )
+                    n = self._lost_frames - 1
+                    warnings.append(f"frame {stamp_ns}: tracking restarted after {n} lost frames")
                     self.n_reinitialized += 1
         t_wc: FloatArray | None = None
         if self.state == "ok" and frame.t_cw is not None:
@@ -264,6 +278,9 @@ class SlamSystem(SystemOutputs):
             self._lost_frames = 0
             self._odom_last = (
                 None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64) @ frame.t_cw
+            )
+            self._odom_pose_last = (
+                None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64).copy()
             )
         timings = sw.stop()
         self.timings.append(timings)
@@ -291,6 +308,7 @@ class SlamSystem(SystemOutputs):
             return False
         frame.t_cw = inverse(self.initial_pose)
         kf = self.map.add_keyframe(frame, frame.t_cw, parent=-1)
+        kf.odom_pose = self._odom_now
         create_points(self.map, kf)
         self._store_cloud(kf, depth_m, colour)
         self._ref_kf = kf.id
@@ -336,13 +354,6 @@ class SlamSystem(SystemOutputs):
         self.loop_closer.add_keyframe(kf1)
         return True
 
-    def _predict_from_odometry(self, odom_pose: FloatArray | None) -> FloatArray | None:
-        """Predicted ``T_cw`` from the odometry motion since the last tracked frame."""
-        if odom_pose is None or self._odom_last is None:
-            return None
-        # _odom_last is T_odom_world at the last tracked frame: T_cw = T_odom_cam^-1 T_odom_world
-        return orthonormalize(inverse(np.asarray(odom_pose, dtype=np.float64)) @ self._odom_last)
-
     def _reinitialize(
         self,
         frame: Frame,
@@ -350,13 +361,14 @@ class SlamSystem(SystemOutputs):
         colour: NDArray[np.uint8] | None,
         t_cw: FloatArray,
     ) -> bool:
-        """Start tracking again from a new keyframe at an odometry-predicted pose."""
+        """Start tracking again from a new keyframe (held: :mod:`visnav.slam.restart`)."""
         if int(np.isfinite(frame.depth).sum()) < 50 or not self.map.keyframes:
             return False
         frame.t_cw = t_cw.copy()
         frame.map_points[:] = -1
         parent = self.map.keyframes[-1].id
         kf = self.map.add_keyframe(frame, frame.t_cw, parent=parent)
+        kf.odom_pose = self._odom_now
         create_points(self.map, kf)
         self._store_cloud(kf, depth_m, colour)
         self._ref_kf = kf.id
@@ -364,6 +376,7 @@ class SlamSystem(SystemOutputs):
         self._local_points = self.map.local_points([kf.id])
         self._last_kf_frame = self.n_frames
         self.state = "ok"
+        self._anchor.hold(kf.id)
         self.loop_closer.add_keyframe(kf)
         return True
 
@@ -405,7 +418,8 @@ class SlamSystem(SystemOutputs):
         if len(mi) < 20:
             return False
         sw.start("pose")
-        t_cw, mask = optimize_pose(self.camera, pred, self._observations(frame, ki, pts[mi]))
+        obs = self._observations(frame, ki, pts[mi])
+        t_cw, mask = optimize_pose(self.camera, pred, obs, prior=self._prior)
         if int(mask.sum()) < 10:
             return False
         frame.t_cw = t_cw
@@ -499,10 +513,12 @@ class SlamSystem(SystemOutputs):
         kp = np.flatnonzero(frame.map_points >= 0)
         mp = frame.map_points[kp]
         obs = self._observations(frame, kp, mp)
-        t_cw, mask = optimize_pose(cam, frame.t_cw, obs)
+        t_cw, mask = optimize_pose(cam, frame.t_cw, obs, prior=self._prior)
         frame.t_cw = t_cw
         if self.dense is not None:
             self._pose_info = pose_information(cam, t_cw, obs, mask)
+            if self._prior is not None:
+                self._pose_info = self._pose_info + self._prior.information
         frame.map_points[kp[~mask]] = -1
         self.map.found[mp[mask]] += 1
         return int(mask.sum())
@@ -519,29 +535,6 @@ class SlamSystem(SystemOutputs):
             frame.t_cw, self._dense_ref = res.t_cw, ref
 
     # -------------------------------------------------------------- keyframes
-
-    def _need_keyframe(self, frame: Frame, inliers: int) -> bool:
-        cfg = self.config
-        since = self.n_frames - self._last_kf_frame
-        if since < cfg.kf_min_frames:
-            return False
-        last_kf = self.map.keyframes[-1]
-        assert frame.t_cw is not None
-        rel = frame.t_cw @ last_kf.t_wc
-        moved = (
-            float(np.linalg.norm(rel[:3, 3])) > cfg.kf_translation
-            or np.degrees(rotation_angle(rel)) > cfg.kf_rotation_deg
-        )
-        ref = self.map.keyframes[self._ref_kf]
-        _, ref_pts = self.map.keyframe_points(ref)
-        min_obs = 2 if len(self.map.keyframes) <= 2 else 3
-        n_ref = sum(1 for p in ref_pts.tolist() if len(self.map.observations[p]) >= min_obs)
-        close = np.isfinite(frame.depth) & (frame.depth < cfg.close_depth)
-        tracked_close = int((close & (frame.map_points >= 0)).sum())
-        untracked_close = int((close & (frame.map_points < 0)).sum())
-        need_close = tracked_close < 100 and untracked_close > 70
-        weak = inliers < cfg.kf_ratio * n_ref
-        return since >= cfg.kf_max_frames or moved or need_close or weak
 
     def _store_cloud(
         self, kf: Keyframe, depth_m: NDArray[np.float32], colour: NDArray[np.uint8] | None
@@ -569,6 +562,7 @@ class SlamSystem(SystemOutputs):
         cfg = self.config
         m = self.map
         kf = m.add_keyframe(frame, frame.t_cw, parent=self._ref_kf)
+        kf.odom_pose = self._odom_now
         kp, pts = np.flatnonzero(frame.map_points >= 0), frame.map_points[frame.map_points >= 0]
         for p, k in zip(pts.tolist(), kp.tolist(), strict=True):
             m.observations[p][kf.id] = k
@@ -599,6 +593,7 @@ class SlamSystem(SystemOutputs):
             m.update_connections(m.keyframes[n])
         if cfg.local_ba and len(m.keyframes) >= 2:
             window = [kf.id, *kf.best_covisibles(cfg.local_window - 1)]
+            window = self._anchor.window(m, kf, window)
             if self._mono is not None:
                 window = mono_ba_window(window)
             self._note_ba(
@@ -608,6 +603,7 @@ class SlamSystem(SystemOutputs):
                     window,
                     inv_sigma2_levels=self.extractor.inv_level_sigma2,
                     iterations=cfg.ba_iterations,
+                    odometry=odometry_edges(cfg, m, window),
                 )
             )
         self._last_kf_frame = self.n_frames
