@@ -130,8 +130,8 @@ class SlamConfig:
     odometry_sigma_t: float = 0.005
     odometry_sigma_t_rel: float = 0.05
     odometry_sigma_r_deg: float = 0.1
-    odometry_sigma_r_rel: float = 0.1
-    odometry_sigma_r_per_m: float = 0.0
+    odometry_sigma_r_rel: float = 0.2
+    odometry_sigma_r_per_m: float = 0.02
     sensor: Literal["rgbd", "mono"] = "rgbd"
     mono_scale: Literal["depth", "odometry"] = "depth"
     init_min_parallax_deg: float = 1.0
