@@ -145,7 +145,7 @@ def test_one_line_moves_the_observer_to_its_own_process(tmp_path: Path, domain: 
         summary = run_scenario(
             str(moved),
             seed=4,
-            duration_s=3.0,
+            duration_s=5.0,
             slam=False,
             ideal_sensors=True,
             out=tmp_path / "r",
@@ -157,6 +157,9 @@ def test_one_line_moves_the_observer_to_its_own_process(tmp_path: Path, domain: 
     assert summary["scenario"] == "car"
     assert summary["goals_total"] == 4
     assert summary["odometry"]["source"] == "world"
+    # the car waits for the first map (the costmaps' static layers), then drives: in-process
+    # observers see 0.168 m in 5 s (0.054 m in 3 s, too close to this bound: an observer
+    # process that joins the graph late under load saw 0.041 m)
     assert summary["odometry"]["distance_m"] > 0.05
     assert summary["localization"]["samples"] >= 10
     assert summary["collisions"] == 0
