@@ -196,7 +196,8 @@ class SlamSystem(SystemOutputs):
         kf_added = loop = reloc = reinit = False
         inliers = 0
         self._odom_pred = predict_from_odometry(odom_pose, self._odom_last)
-        self._odom_now = None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64)
+        # one private copy per frame: keyframes keep it, so a caller reusing its array is safe
+        self._odom_now = None if odom_pose is None else np.array(odom_pose, dtype=np.float64)
         self._prior = odometry_prior(self.config, self._odom_pred, odom_pose, self._odom_pose_last)
         if self.state == "uninitialized" and self._mono is not None:
             sw.start("mapping")
@@ -276,12 +277,8 @@ class SlamSystem(SystemOutputs):
             self._record(frame)
             t_wc = inverse(frame.t_cw)
             self._lost_frames = 0
-            self._odom_last = (
-                None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64) @ frame.t_cw
-            )
-            self._odom_pose_last = (
-                None if odom_pose is None else np.asarray(odom_pose, dtype=np.float64).copy()
-            )
+            self._odom_last = None if self._odom_now is None else self._odom_now @ frame.t_cw
+            self._odom_pose_last = self._odom_now
         timings = sw.stop()
         self.timings.append(timings)
         if self._ba_warnings:
