@@ -212,8 +212,14 @@ def test_image_proc_survives_an_empty_image_from_topic_pub(
             info_pub = node.create_publisher(CameraInfo, "/cam/camera_info", 5)
             image_pub = node.create_publisher(Image, "/cam/image_raw", 5)
             node.create_subscription(Image, "/cam/image_mono", mono.append, 10)
-            ctx.spin_until(lambda: image_pub.get_subscription_count() > 0, 20.0)
-            ctx.spin_until(lambda: node.count_publishers("/cam/image_mono") > 0, 20.0)
+            # image_proc subscribes to image_raw before camera_info: wait for both, or the
+            # camera_info below can be published before this process knows its subscriber
+            for what, seen in (
+                ("image_raw", lambda: image_pub.get_subscription_count() > 0),
+                ("camera_info", lambda: info_pub.get_subscription_count() > 0),
+                ("image_mono", lambda: node.count_publishers("/cam/image_mono") > 0),
+            ):
+                assert ctx.spin_until(seen, 30.0), f"image_proc's {what} never appeared"
             info_pub.publish(_info(0))  # pairs with the empty image (stamp 0)
             env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
             pub = subprocess.run(
@@ -224,6 +230,8 @@ def test_image_proc_survives_an_empty_image_from_topic_pub(
                     "topic",
                     "pub",
                     "-1",
+                    "--max-wait-time-secs",  # a failure to match is an error, not a hang
+                    "30",
                     "/cam/image_raw",
                     "sensor_msgs/msg/Image",
                     "{header: {frame_id: c}, encoding: rgb8}",

@@ -10,7 +10,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from types import SimpleNamespace
+from types import ModuleType, SimpleNamespace
+from typing import cast
 
 import pytest
 
@@ -78,7 +79,7 @@ def test_no_cluster_at_auto_names_the_fix(tmp_path: Path) -> None:
         raise ConnectionError("Could not find any running Ray instance. Please specify ...")
 
     backend = RayBackend.__new__(RayBackend)  # Ray's own answer, without a Ray on the machine
-    backend.ray = SimpleNamespace(init=refuse)
+    backend.ray = cast("ModuleType", SimpleNamespace(init=refuse))
     backend.address, backend.jobs, backend.cpus_per_run = "auto", None, 1.0
     runs = backend.run([RunSpec(0, "car", "default", {}, 0, 2**30)], tmp_path)
     with pytest.raises(SweepError) as info:
@@ -177,7 +178,10 @@ def test_files_of_a_run_on_another_node_are_gathered(tmp_path: Path, bag_limit: 
     (remote / "summary.json").write_text(json.dumps(summary))
     (remote / "run.log").write_text("log\n")
     backend = RayBackend.__new__(RayBackend)  # no Ray needed to gather a result
-    backend.ray = SimpleNamespace(get=lambda ref: ref, exceptions=SimpleNamespace(RayError=OSError))
+    backend.ray = cast(
+        "ModuleType",
+        SimpleNamespace(get=lambda ref: ref, exceptions=SimpleNamespace(RayError=OSError)),
+    )
     out = {
         "key": spec.key,
         "status": "ok",

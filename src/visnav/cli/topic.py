@@ -5,11 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 from visnav.cli._common import cli_node
+from visnav.errors import VisnavError
 from visnav.graph.introspect import subscription_qos_for, topic_type
 from visnav.graph.monitor import BandwidthMeter, DelayMeter, RateMeter
+from visnav.graph.node import Publisher
 from visnav.graph.qos import DurabilityPolicy, QoSProfile
 from visnav.msgs.construct import get_field, message_from_dict, message_to_yaml
 from visnav.msgs.errors import MessageError
@@ -17,7 +20,25 @@ from visnav.msgs.serde import get_message_class, serialize
 from visnav.msgs.time import time_to_ns
 from visnav.safe_yaml import load_yaml
 
-__all__ = ["add_arguments"]
+__all__ = [
+    "KEEP_ALIVE_S",
+    "SubscriptionWaitTimeoutError",
+    "TopicPubArgumentError",
+    "add_arguments",
+    "matching_subscription_count",
+    "wait_for_matching_subscriptions",
+]
+
+KEEP_ALIVE_S = 0.2
+"""Default of ``topic pub --keep-alive`` (ros2's is 0.1 s)."""
+
+
+class TopicPubArgumentError(VisnavError, ValueError):
+    """``topic pub`` was given options that do not go together."""
+
+
+class SubscriptionWaitTimeoutError(VisnavError, TimeoutError):
+    """``topic pub --max-wait-time-secs`` passed before the subscriptions appeared."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,18 +80,62 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("topic")
     p.add_argument("type", help="message type, e.g. geometry_msgs/msg/Twist")
     p.add_argument("values", nargs="?", default="{}", help="YAML of the fields")
-    p.add_argument("-r", "--rate", type=float, default=1.0, help="publish rate in Hz")
-    p.add_argument("-1", "--once", action="store_true", help="publish once and exit")
-    p.add_argument("-t", "--times", type=int, default=0, help="publish N times and exit")
+    p.add_argument(
+        "-r", "--rate", type=_positive_float, default=1.0, help="publish rate in Hz (default 1)"
+    )
+    count = p.add_mutually_exclusive_group()
+    count.add_argument("-1", "--once", action="store_true", help="publish once and exit")
+    count.add_argument(
+        "-t", "--times", type=_non_negative_int, default=0, help="publish N times and exit"
+    )
     p.add_argument("--qos-durability", choices=["volatile", "transient_local"], default="volatile")
     p.add_argument(
         "-w",
         "--wait-matching-subscriptions",
-        type=int,
+        type=_non_negative_int,
         default=None,
-        help="wait for N subscriptions before publishing (default 1 with --once)",
+        metavar="N",
+        help="wait until N subscriptions of the type are in the graph before publishing "
+        "(default: 1 with --once/--times, else 0)",
+    )
+    p.add_argument(
+        "--max-wait-time-secs",
+        type=_positive_float,
+        default=None,
+        metavar="S",
+        help="give up waiting for the subscriptions after S seconds: exit 1 with an error "
+        "(default: wait forever)",
+    )
+    p.add_argument(
+        "--keep-alive",
+        type=_positive_float,
+        default=KEEP_ALIVE_S,
+        metavar="S",
+        help=f"stay S seconds after the last message so it leaves (default {KEEP_ALIVE_S})",
     )
     p.set_defaults(func=cmd_pub)
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        msg = f"{text!r} is not a positive number (e.g. 0.5)"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        msg = f"{text!r} is not a whole number >= 0 (e.g. 2)"
+        raise argparse.ArgumentTypeError(msg)
+    return value
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -191,6 +256,66 @@ def cmd_measure(args: argparse.Namespace) -> int:
     return 0
 
 
+def matching_subscription_count(pub: Publisher[Any]) -> int:
+    """Subscriptions in the graph that receive what ``pub`` publishes.
+
+    Those of the publisher's topic and message type, in any process (other types never
+    receive: the type is part of the transport's key). QoS is not compared: between
+    processes visnav delivers whatever the profiles (see :mod:`visnav.graph.qos`).
+    """
+    return sum(
+        1
+        for e in pub.node.get_subscriptions_info_by_topic(pub.topic_name)
+        if e.type_name == pub.type_name
+    )
+
+
+def wait_for_matching_subscriptions(
+    pub: Publisher[Any],
+    count: int,
+    *,
+    max_wait_s: float | None = None,
+    on_wait: Callable[[int], None] | None = None,
+) -> int:
+    """Spin ``pub``'s context until ``count`` matching subscriptions are in the graph.
+
+    As ``ros2 topic pub --wait-matching-subscriptions N --max-wait-time-secs S``. A
+    subscription is counted once its liveliness token arrived; Zenoh then has its
+    subscriber too (it is declared first), and a sample published right away reaches it
+    (:meth:`visnav.graph.transport.ZenohPublisher.wants_sample`).
+
+    Args:
+        pub: the publisher.
+        count: how many subscriptions to wait for (0 returns at once).
+        max_wait_s: give up after this many seconds; None waits forever.
+        on_wait: called with the count seen after 1 s of waiting, then every 10 s.
+
+    Returns:
+        The number of matching subscriptions seen (at least ``count``).
+
+    Raises:
+        SubscriptionWaitTimeoutError: ``max_wait_s`` passed first.
+    """
+    ctx = pub.node.context
+    start = time.monotonic()
+    next_note = start + 1.0
+    while (seen := matching_subscription_count(pub)) < count:
+        now = time.monotonic()
+        if max_wait_s is not None and now - start >= max_wait_s:
+            text = (
+                f"topic '{pub.topic_name}': {seen} of {count} matching subscription(s) "
+                f"({pub.type_name}) after waiting {max_wait_s:g} s (--max-wait-time-secs); "
+                "start the subscriber first, wait longer, or lower "
+                "--wait-matching-subscriptions"
+            )
+            raise SubscriptionWaitTimeoutError(text)
+        if on_wait is not None and now >= next_note:
+            on_wait(seen)
+            next_note = now + 10.0
+        ctx.spin_once(0.05 if max_wait_s is None else min(0.05, start + max_wait_s - now))
+    return seen
+
+
 def cmd_pub(args: argparse.Namespace) -> int:
     """``topic pub``."""
     values = (
@@ -211,13 +336,27 @@ def cmd_pub(args: argparse.Namespace) -> int:
     wait_n = args.wait_matching_subscriptions
     if wait_n is None:
         wait_n = 1 if times else 0
+    if wait_n == 0 and args.max_wait_time_secs is not None:
+        text = (
+            f"--max-wait-time-secs {args.max_wait_time_secs:g}: nothing to wait for; add "
+            "--wait-matching-subscriptions N, --once or --times N, or drop the option"
+        )
+        raise TopicPubArgumentError(text)
     with cli_node(args, discover=False) as node:
         qos = QoSProfile(depth=10, durability=DurabilityPolicy(args.qos_durability))
         pub = node.create_publisher(cls, args.topic, qos)
-        deadline = time.monotonic() + 5.0
-        while wait_n and pub.get_subscription_count() < wait_n and time.monotonic() < deadline:
-            node.context.spin_once(0.05)
-        period = 1.0 / args.rate if args.rate > 0 else 1.0
+
+        def note(seen: int) -> None:
+            print(
+                f"waiting for {wait_n} matching subscription(s) on '{pub.topic_name}' "
+                f"({pub.type_name}): {seen} so far",
+                flush=True,
+            )
+
+        wait_for_matching_subscriptions(
+            pub, wait_n, max_wait_s=args.max_wait_time_secs, on_wait=note
+        )
+        period = 1.0 / args.rate
         count = 0
         next_t = time.monotonic()
         while True:
@@ -225,7 +364,7 @@ def cmd_pub(args: argparse.Namespace) -> int:
             pub.publish(msg)
             count += 1
             if times and count >= times:
-                time.sleep(0.2)  # let the transport flush before the session closes
+                time.sleep(args.keep_alive)  # let the transport send it before the session closes
                 return 0
             next_t += period
             while time.monotonic() < next_t:

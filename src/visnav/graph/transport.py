@@ -261,8 +261,13 @@ class ZenohPublisher:
         """
         if self._cache is not None:
             return True
+        # The matching listener's callback can come tens of ms after Zenoh's routing (and
+        # the graph's liveliness token) know a new subscriber: ask Zenoh (~1 us) before
+        # skipping, or a sample published on seeing the subscription is lost.
         if not self._matching:
-            return False
+            status: Any = self._pub.matching_status
+            if not getattr(status, "matching", status):
+                return False
         pace = self._pace
         return pace is None or not pace.all_paused()
 
