@@ -16,6 +16,10 @@ from visnav.msgs import (
     Header,
     LaserScan,
     OccupancyGrid,
+    Path,
+    Point,
+    Pose,
+    PoseStamped,
     Quaternion,
     TFMessage,
     Transform,
@@ -145,3 +149,75 @@ def test_costmap_node_reports_missing_tf(ctx: Context) -> None:
     assert node.costmap.get_robot_pose() is None
     assert "base_link" in node.costmap.pose_error
     assert "map" in node.costmap.pose_error
+
+
+def _path(poses: list[tuple[int, float, float]]) -> Path:
+    return Path(
+        header=Header(stamp=ns_to_time(0), frame_id="map"),
+        poses=[
+            PoseStamped(
+                header=Header(stamp=ns_to_time(t), frame_id="map"),
+                pose=Pose(
+                    position=Point(x=x, y=y, z=0.0),
+                    orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+                ),
+            )
+            for t, x, y in poses
+        ],
+    )
+
+
+def test_mapper_rebuilds_the_grid_when_the_trajectory_is_corrected(ctx: Context) -> None:
+    """RTAB-Map's grid from the optimised graph: a loop closure moves the mapped walls."""
+    node = MapperNode(
+        context=ctx,
+        parameter_overrides={
+            "width": 6.0,
+            "height": 6.0,
+            "origin_x": -3.0,
+            "origin_y": -3.0,
+            "trajectory_topic": "/slam/path",
+            "base_frame": "base",
+            "linear_update": 0.1,
+        },
+    )
+    probe = Node("probe", context=ctx)
+    tf_pub = probe.create_publisher(TFMessage, "/tf", 10)
+    scan_pub = probe.create_publisher(LaserScan, "/scan", qos_profile_sensor_data)
+    path_pub = probe.create_publisher(Path, "/slam/path", 1)
+    stamps = [k * S // 10 for k in range(4)]
+    xs = [0.0, 0.05, 0.2, 0.4]  # the second scan is too close to the first: not kept
+    for t, x in zip(stamps, xs, strict=True):
+        tf_pub.publish(
+            TFMessage(
+                transforms=[
+                    _tf(t, "map", "odom", 0.0, 0.0, 0.0),
+                    _tf(t, "odom", "base", x, 0.0, 0.0),
+                    _tf(t, "base", "laser", 0.0, 0.0, 0.0),
+                ]
+            )
+        )
+        scan = _wall_scan(t)
+        scan.ranges = ((1.9 - x) / np.cos(np.linspace(-0.5, 0.5, 61))).astype(np.float32)
+        scan_pub.publish(scan)
+        ctx.spin_some()
+    assert node.mapper.scans == 3
+    assert len(node.history) == 3
+
+    def wall_rows() -> set[int]:
+        values = node.mapper.occupancy_values()
+        return set(np.nonzero(values[:, int((1.9 + 3.0) / 0.05)] == 100)[0].tolist())
+
+    before = wall_rows()
+    kept = [(stamps[k], xs[k]) for k in (0, 2, 3)]
+    path_pub.publish(_path([(t, x, 0.0) for t, x in kept]))  # as integrated
+    ctx.spin_some()
+    assert node.rebuilds == 0
+    path_pub.publish(_path([(t, x, 0.0) for t, x in kept]))  # the same again
+    ctx.spin_some()
+    assert node.rebuilds == 0
+    path_pub.publish(_path([(t, x, 0.5) for t, x in kept]))  # a loop moved the past 0.5 m
+    ctx.spin_some()
+    assert node.rebuilds == 1
+    assert node.mapper.scans == 3
+    assert {r - 10 for r in wall_rows()} == before  # the wall moved with the poses

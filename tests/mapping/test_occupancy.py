@@ -109,3 +109,42 @@ def test_bad_parameters() -> None:
         OccupancyMapper(prob_hit=1.5)
     with pytest.raises(MappingError, match=r"prob_miss < 0\.5 < prob_hit"):
         OccupancyMapper(prob_hit=0.4)
+
+
+def test_beams_are_cropped_to_the_usable_range() -> None:
+    """gmapping's maxUrange: a return beyond it only clears space up to it."""
+    m = OccupancyMapper(
+        width=10.0, height=4.0, origin_x=-1.0, origin_y=-2.0, grow=False, max_usable_range=3.0
+    )
+    m.integrate_scan(_scan(np.array([2.0, 5.0, math.inf]), fov=0.02), np.eye(4))
+    values = m.occupancy_values()
+    _rows, cols = np.nonzero(values == 100)
+    assert len(cols) == 1  # the far return marks nothing ...
+    assert (cols[0] + 0.5) * m.resolution + m.origin_x == pytest.approx(
+        2.0, abs=0.05
+    )  # the near one
+    known_x = np.nonzero(m.known.any(axis=0))[0]
+    assert known_x.max() * m.resolution + m.origin_x == pytest.approx(
+        3.0, abs=0.06
+    )  # ... but clears to 3 m
+    uncropped = OccupancyMapper(width=10.0, height=4.0, origin_x=-1.0, origin_y=-2.0, grow=False)
+    uncropped.integrate_scan(_scan(np.array([2.0, 5.0, math.inf]), fov=0.02), np.eye(4))
+    assert (uncropped.occupancy_values() == 100).sum() == 2
+
+
+def test_a_bad_usable_range_is_refused() -> None:
+    with pytest.raises(MappingError, match="max_usable_range is -1"):
+        OccupancyMapper(max_usable_range=-1.0)
+
+
+def test_clear_forgets_every_observation() -> None:
+    m = OccupancyMapper(width=6.0, height=6.0, origin_x=-1.0, origin_y=-3.0, grow=False)
+    scan = _scan(_wall_ranges(101, 0.6, 3.0), fov=0.6)
+    m.integrate_scan(scan, np.eye(4))
+    first = m.occupancy_values().copy()
+    m.integrate_scan(scan, np.eye(4))
+    m.clear()
+    assert m.scans == 0
+    assert (m.occupancy_values() == -1).all()
+    m.integrate_scan(scan, np.eye(4))
+    np.testing.assert_array_equal(m.occupancy_values(), first)

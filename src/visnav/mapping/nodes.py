@@ -12,7 +12,20 @@
   (true), ``grow_margin`` (2.0), ``prob_hit`` (0.7), ``prob_miss`` (0.4), ``clamp_min``
   (0.12), ``clamp_max`` (0.97), ``occupied_thresh`` (0.65), ``free_thresh`` (0.196),
   ``free_on_max_range`` (true), ``max_free_range`` (5.0), ``trinary`` (true),
-  ``map_update_interval`` (1.0 s; gmapping's 5.0 is slow for exploring).
+  ``map_update_interval`` (1.0 s; gmapping's 5.0 is slow for exploring),
+  ``max_usable_range`` (gmapping's ``maxUrange``: beams cropped to it; 0: not cropped),
+  ``linear_update`` / ``angular_update`` (gmapping's ``linearUpdate`` /
+  ``angularUpdate``: a scan is integrated after the sensor moved this far or turned this
+  much; 0 / 0, every scan, unlike gmapping's 1.0 m / 0.5 rad, which suit a particle
+  filter's cost, not a known-pose grid's).
+
+  With ``trajectory_topic`` (a ``nav_msgs/Path`` of ``base_frame`` in the map, e.g.
+  the SLAM node's ``slam/path``) the integrated scans are kept with their
+  ``odom_frame`` poses, and when a new path moves any of them by more than
+  ``rebuild_distance`` (m, at 3 m range) from where the previous path put it (a loop
+  closure corrected the past) the grid is rebuilt from all of them at their corrected
+  poses, as RTAB-Map assembles its grid from its optimised graph
+  (:mod:`visnav.mapping.scan_history`). The rebuild count is in ``rebuilds``.
 
 A scan whose transform is not available yet waits (up to 5 scans) and is retried
 with the next scan; one whose transform cannot be found is dropped with one log line
@@ -21,16 +34,20 @@ per distinct reason.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.graph.qos import qos_profile_sensor_data
 from visnav.mapping.costmap_ros import MAP_QOS, CostmapROS
 from visnav.mapping.occupancy import OccupancyMapper
+from visnav.mapping.scan_history import ScanHistory, pose_displacement
 from visnav.msgs.time import time_to_ns
-from visnav.msgs.types import LaserScan, MapMetaData, OccupancyGrid
+from visnav.msgs.types import LaserScan, MapMetaData, OccupancyGrid, Path
 from visnav.tf.buffer import Buffer
 from visnav.tf.errors import ExtrapolationException, TransformException
 from visnav.tf.ros import TransformListener
@@ -41,6 +58,7 @@ if TYPE_CHECKING:
 __all__ = ["CostmapNode", "MapperNode", "MapperParams"]
 
 _DROP_LOG_PERIOD_S = 5.0  # at most one "dropped a scan" warning per 5 s
+_REBUILD_REACH_M = 3.0  # a heading change counts by how far it moves a wall 3 m away
 
 
 @dataclass(frozen=True)
@@ -65,6 +83,13 @@ class MapperParams:
     free_on_max_range: bool = param(True, description="max-range beams clear space")
     max_free_range: float = param(5.0, description="longest clearing ray (m)")
     map_update_interval: float = param(1.0, description="map publishing period (s)")
+    max_usable_range: float = param(0.0, description="beams cropped to this range (m; 0: none)")
+    linear_update: float = param(0.0, description="integrate a scan after moving (m; 0: all)")
+    angular_update: float = param(0.0, description="integrate a scan after turning (rad; 0: all)")
+    trajectory_topic: str = param("", description="nav_msgs/Path to rebuild on ('': never)")
+    base_frame: str = param("base_footprint", description="frame of the trajectory's poses")
+    odom_frame: str = param("odom", description="continuous frame the kept scans are held in")
+    rebuild_distance: float = param(0.025, description="rebuild when a scan moves this far (m)")
 
 
 class CostmapNode(Node):
@@ -111,7 +136,15 @@ class MapperNode(Node):
             free_thresh=p.free_thresh,
             free_on_max_range=p.free_on_max_range,
             max_free_range=p.max_free_range,
+            max_usable_range=p.max_usable_range if p.max_usable_range > 0 else math.inf,
         )
+        self._keep = bool(p.trajectory_topic)
+        self._gate = self._keep or p.linear_update > 0 or p.angular_update > 0
+        self.history = ScanHistory(p.linear_update, p.angular_update, keep=self._keep)
+        self.rebuilds = 0
+        self._path_poses = np.zeros((0, 4, 4))
+        if self._keep:
+            self.create_subscription(Path, p.trajectory_topic, self._on_path, 1)
         interval = p.map_update_interval
         self.tf_buffer = Buffer()
         self.tf_listener = TransformListener(self.tf_buffer, self)
@@ -132,8 +165,43 @@ class MapperNode(Node):
             return self._drop(msg, exc)
         except TransformException as exc:
             return self._drop(msg, exc)
+        if self._gate:
+            p = self.params
+            try:
+                t_odom = self.tf_buffer.lookup_transform_matrix(
+                    p.odom_frame, msg.header.frame_id, stamp
+                )
+                t_base = self.tf_buffer.lookup_transform_matrix(
+                    p.base_frame, msg.header.frame_id, stamp
+                )
+            except TransformException as exc:
+                return self._drop(msg, exc)
+            if not self.history.wants(t_odom):
+                return True
+            self.history.add(msg, t_odom, t_base)
         self.mapper.integrate_scan(msg, T)
         return True
+
+    def _on_path(self, msg: Path) -> None:
+        """Rebuild the grid when the trajectory's past moved a kept scan (module docstring)."""
+        poses = self.history.poses_from_path(msg)
+        if poses is None:
+            return
+        before, self._path_poses = self._path_poses, poses
+        n = min(len(before), len(poses))
+        if n == 0:
+            return
+        moved = pose_displacement(poses[:n], before[:n], _REBUILD_REACH_M)
+        if float(moved.max()) <= self.params.rebuild_distance:
+            return
+        self.mapper.clear()
+        for scan, pose in zip(self.history.scans, poses, strict=True):
+            self.mapper.integrate_scan(scan, pose)
+        self.rebuilds += 1
+        self.get_logger().info(
+            f"map rebuilt on the corrected trajectory: {len(poses)} scans, "
+            f"largest move {float(moved.max()):.3f} m (rebuild {self.rebuilds})"
+        )
 
     def _drop(self, msg: LaserScan, exc: TransformException) -> bool:
         self.dropped += 1

@@ -12,6 +12,10 @@ observed cell is updated once per scan (OctoMap's rule)::
 Beams with a return are those with ``range_min <= r < range_max``; with
 ``free_on_max_range`` a +inf or ``>= range_max`` reading clears along its ray up to
 ``min(range_max, max_free_range)`` without marking; NaN readings are ignored.
+``max_usable_range`` is gmapping's ``maxUrange``: every beam is cropped to it, so a
+return beyond it only clears space up to it. An RGB-D camera's depth error grows with
+the square of the range (4 cm at 5 m for a Kinect v1, whose specified range ends at
+4 m): walls mapped from far returns come out thick and a few cells off.
 
 The published ``nav_msgs/OccupancyGrid`` follows map_server's trinary convention:
 100 when ``p >= occupied_thresh`` (0.65), 0 when ``p <= free_thresh`` (0.196), -1
@@ -64,6 +68,7 @@ class OccupancyMapper:
         free_thresh: published as free at or below (0.196).
         free_on_max_range: clear along no-return beams (True).
         max_free_range: farthest clearing of a no-return beam, metres (5.0).
+        max_usable_range: beams are cropped to this range, metres (inf: not cropped).
 
     Raises:
         MappingError: probabilities outside (0, 1) or in the wrong order, a bad size.
@@ -87,6 +92,7 @@ class OccupancyMapper:
         free_thresh: float = 0.196,
         free_on_max_range: bool = True,
         max_free_range: float = 5.0,
+        max_usable_range: float = math.inf,
     ) -> None:
         for name, p in (
             ("prob_hit", prob_hit),
@@ -106,6 +112,12 @@ class OccupancyMapper:
                 f"occupancy mapper: expected prob_miss < 0.5 < prob_hit ({prob_miss}, {prob_hit}), "
                 f"clamp_min < clamp_max ({clamp_min}, {clamp_max}) and free_thresh < "
                 f"occupied_thresh ({free_thresh}, {occupied_thresh})"
+            )
+            raise MappingError(msg)
+        if not max_usable_range > 0:
+            msg = (
+                f"occupancy mapper: max_usable_range is {max_usable_range}; expected a "
+                "positive range in metres (inf: beams are not cropped)"
             )
             raise MappingError(msg)
         if not (resolution > 0 and width > 0 and height > 0):
@@ -132,6 +144,7 @@ class OccupancyMapper:
         self.free_thresh = free_thresh
         self.free_on_max_range = free_on_max_range
         self.max_free_range = float(max_free_range)
+        self.max_usable_range = float(max_usable_range)
         self.scans = 0
         self._cache = ScanCache()
 
@@ -156,11 +169,14 @@ class OccupancyMapper:
             a = key[0] + np.arange(n) * key[1]
             c.key, c.cos, c.sin = key, np.cos(a), np.sin(a)
         rmin, rmax = float(msg.range_min), float(msg.range_max)
+        usable = self.max_usable_range
         with np.errstate(invalid="ignore"):
-            hit = (ranges >= rmin) & (ranges < rmax)
+            hit = (ranges >= rmin) & (ranges < min(rmax, usable))
+            cropped = (ranges >= usable) & (ranges < rmax)
             nohit = (np.isposinf(ranges) | (ranges >= rmax)) & self.free_on_max_range
-        use = hit | nohit
-        r = np.where(hit, ranges, min(rmax, self.max_free_range))[use]
+        use = hit | nohit | cropped
+        clear = np.where(cropped, usable, min(rmax, self.max_free_range, usable))
+        r = np.where(hit, ranges, clear)[use]
         local = np.stack([r * c.cos[use], r * c.sin[use], np.zeros_like(r)], axis=1)
         world = local @ T_map_scan[:3, :3].T + T_map_scan[:3, 3]
         self.integrate_points(T_map_scan[:2, 3], world[:, :2], hit[use])
@@ -199,6 +215,14 @@ class OccupancyMapper:
         kn[free] = True
         kn[occ] = True
         self.scans += 1
+
+    def clear(self) -> None:
+        """Forget every observation (the extent stays; :attr:`scans` restarts at 0)."""
+        self.logodds.fill(0.0)
+        self.known.fill(False)
+        self._stamp.fill(0)
+        self._stamp_value = 2
+        self.scans = 0
 
     def _fit(self, pts: NDArray[np.float64]) -> None:
         finite = pts[np.isfinite(pts).all(axis=1)]

@@ -1,0 +1,156 @@
+"""The scans a mapper integrated, kept so the grid can be rebuilt on corrected poses.
+
+A SLAM system corrects its past poses after a loop closure; a grid that integrated each
+scan at the pose of its moment keeps the old errors (a wall seen before and after a
+loop appears twice). RTAB-Map therefore assembles its grid from the scans attached to
+its graph's nodes at their optimised poses. :class:`ScanHistory` is that store for a
+scan mapper: each kept scan with its sensor pose in the odometry frame (continuous, never
+corrected) and in the base frame. :meth:`ScanHistory.poses_from_path`
+re-derives every kept scan's map pose from the SLAM trajectory (a ``nav_msgs/Path`` of
+the base frame in the map):
+
+* a scan whose stamp is in the path gets ``path(t) @ T_base_sensor``, levelled to the
+  plane (x, y, yaw: the grid is 2D, SLAM's z / tilt errors stay out as they stay out
+  of ``map -> odom`` with ``force_3dof``);
+* another scan (tracking lost, or newer than the path) gets the correction
+  ``T_map_odom`` of the nearest kept scan that is in the path, applied to its own
+  odometry pose.
+
+Scans are kept as gmapping processes them: one whenever the sensor moved
+``linear_update`` metres or turned ``angular_update`` radians since the last kept scan
+(0 and 0: every scan).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from visnav.msgs.time import time_to_ns
+from visnav.msgs.types import LaserScan, Path
+
+__all__ = ["ScanHistory", "pose_displacement"]
+
+FloatArray = NDArray[np.float64]
+
+
+def pose_displacement(a: FloatArray, b: FloatArray, reach: float) -> FloatArray:
+    """How far, in the plane, a point ``reach`` m ahead of each pose moves from ``a`` to ``b``.
+
+    Args:
+        a: ``(N, 4, 4)`` poses.
+        b: ``(N, 4, 4)`` poses.
+        reach: the range at which the heading difference is counted (m).
+
+    Returns:
+        ``(N,)`` x-y translation difference plus ``reach`` times the yaw difference.
+    """
+    dxy = np.linalg.norm(a[:, :2, 3] - b[:, :2, 3], axis=1)
+    yaw_a = np.arctan2(a[:, 1, 0], a[:, 0, 0])
+    yaw_b = np.arctan2(b[:, 1, 0], b[:, 0, 0])
+    dyaw = np.abs(np.remainder(yaw_a - yaw_b + np.pi, 2 * np.pi) - np.pi)
+    return np.asarray(dxy + reach * dyaw, dtype=np.float64)
+
+
+def _path_matrices(path: Path) -> tuple[NDArray[np.int64], FloatArray]:
+    """Stamps (ns) and levelled 4x4 poses of a ``nav_msgs/Path``."""
+    n = len(path.poses)
+    stamps = np.empty(n, np.int64)
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    for i, ps in enumerate(path.poses):
+        stamps[i] = time_to_ns(ps.header.stamp)
+        p, q = ps.pose.position, ps.pose.orientation
+        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        c, s = math.cos(yaw), math.sin(yaw)
+        poses[i, :2, :2] = [[c, -s], [s, c]]
+        poses[i, 0, 3], poses[i, 1, 3] = p.x, p.y
+    return stamps, poses
+
+
+@dataclass
+class ScanHistory:
+    """Kept scans and their sensor poses in the odometry and base frames.
+
+    Args:
+        linear_update: keep a scan after this much sensor travel (m; 0: not by travel).
+        angular_update: ... or this much sensor rotation (rad; 0: not by rotation); both
+            0: every scan.
+        keep: store the scans (else only the last pose, for :meth:`wants`).
+    """
+
+    linear_update: float = 0.0
+    angular_update: float = 0.0
+    keep: bool = True
+    scans: list[LaserScan] = field(default_factory=list)
+    stamps: list[int] = field(default_factory=list)
+    t_odom_sensor: list[FloatArray] = field(default_factory=list)
+    t_base_sensor: list[FloatArray] = field(default_factory=list)
+    last: FloatArray | None = None
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def wants(self, t_odom_sensor: FloatArray) -> bool:
+        """Whether a scan at this odometry-frame sensor pose is to be kept (and integrated)."""
+        last = self.last
+        if last is None or (self.linear_update <= 0 and self.angular_update <= 0):
+            return True
+        moved = float(np.linalg.norm(t_odom_sensor[:2, 3] - last[:2, 3]))
+        rel = last[:3, :3].T @ t_odom_sensor[:3, :3]
+        turned = abs(math.atan2(rel[1, 0], rel[0, 0]))
+        return (0 < self.linear_update <= moved) or (0 < self.angular_update <= turned)
+
+    def add(
+        self,
+        scan: LaserScan,
+        t_odom_sensor: FloatArray,
+        t_base_sensor: FloatArray,
+    ) -> None:
+        """Keep ``scan`` (or only its pose, for :meth:`wants`, without ``keep``)."""
+        self.last = np.array(t_odom_sensor, dtype=np.float64)
+        if not self.keep:
+            return
+        self.scans.append(scan)
+        self.stamps.append(time_to_ns(scan.header.stamp))
+        self.t_odom_sensor.append(np.array(t_odom_sensor, dtype=np.float64))
+        self.t_base_sensor.append(np.array(t_base_sensor, dtype=np.float64))
+
+    def poses_from_path(self, path: Path) -> FloatArray | None:
+        """Every kept scan's map pose from the SLAM trajectory ``path`` (module docstring).
+
+        Returns:
+            ``(N, 4, 4)`` poses, or None when no kept scan's stamp is in the path.
+        """
+        if not self.scans or not path.poses:
+            return None
+        p_stamps, p_poses = _path_matrices(path)
+        order = np.argsort(p_stamps, kind="stable")
+        p_stamps, p_poses = p_stamps[order], p_poses[order]
+        stamps = np.asarray(self.stamps, np.int64)
+        idx = np.clip(np.searchsorted(p_stamps, stamps), 0, len(p_stamps) - 1)
+        found = p_stamps[idx] == stamps
+        if not found.any():
+            return None
+        odom = np.stack(self.t_odom_sensor)
+        base = np.stack(self.t_base_sensor)
+        out = np.empty_like(odom)
+        anchors = np.flatnonzero(found)
+        out[anchors] = p_poses[idx[anchors]] @ base[anchors]
+        missing = np.flatnonzero(~found)
+        if len(missing):
+            a_stamps = stamps[anchors]
+            k = np.clip(np.searchsorted(a_stamps, stamps[missing]), 1, len(anchors) - 1)
+            if len(anchors) == 1:
+                k = np.zeros_like(k)
+            else:
+                earlier = np.abs(stamps[missing] - a_stamps[k - 1]) <= np.abs(
+                    a_stamps[k] - stamps[missing]
+                )
+                k = np.where(earlier, k - 1, k)
+            j = anchors[k]
+            correction = out[j] @ np.linalg.inv(odom[j])
+            out[missing] = correction @ odom[missing]
+        return out
