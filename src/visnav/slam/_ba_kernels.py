@@ -389,6 +389,32 @@ def _adjoint(t: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
 
 
 @numba.njit(cache=True)
+def _residual_jacobian(r: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+    """(6, 6) derivative of the twist ``r`` of ``E`` by a left twist of ``E``.
+
+    ``exp(xi) E`` moves the translation by ``rho - [t]x phi`` and the rotation vector by
+    ``J_l^-1(phi_E) phi`` (the inverse left Jacobian of SO(3)).
+    """
+    out = np.zeros((6, 6))
+    tx = np.zeros((3, 3))
+    tx[0, 1], tx[0, 2], tx[1, 0] = -r[2], r[1], r[2]
+    tx[1, 2], tx[2, 0], tx[2, 1] = -r[0], -r[1], r[0]
+    px = np.zeros((3, 3))
+    px[0, 1], px[0, 2], px[1, 0] = -r[5], r[4], r[5]
+    px[1, 2], px[2, 0], px[2, 1] = -r[3], -r[4], r[3]
+    theta = np.sqrt(r[3] * r[3] + r[4] * r[4] + r[5] * r[5])
+    if theta < 1e-4:
+        c = 1.0 / 12.0
+    else:
+        c = 1.0 / theta**2 - (1.0 + np.cos(theta)) / (2.0 * theta * np.sin(theta))
+    for i in range(3):
+        out[i, i] = 1.0
+    out[:3, 3:] = -tx
+    out[3:, 3:] = np.eye(3) - 0.5 * px + c * (px @ px)
+    return out
+
+
+@numba.njit(cache=True)
 def _edge_error(
     pose_a: NDArray[np.float64], pose_b: NDArray[np.float64], z_inv: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover - compiled
@@ -450,15 +476,17 @@ def _add_odometry(
     """Add the relative-pose factors' normal equations to the pose block, in place.
 
     With left twists ``T <- exp(xi) T`` the error ``E = Z^-1 T_a T_b^-1`` moves by
-    ``Ad(Z^-1) xi_a`` and by ``-Ad(E) xi_b`` (first order).
+    ``Ad(Z^-1) xi_a`` and by ``-Ad(E) xi_b`` (first order), and its twist by
+    :func:`_residual_jacobian` of that.
     """
     for n in range(len(edge_a)):
         fa, fb = free[edge_a[n]], free[edge_b[n]]
         if fa < 0 and fb < 0:
             continue
         r, e = _edge_error(poses[edge_a[n]], poses[edge_b[n]], edge_zinv[n])
-        ja = _adjoint(edge_zinv[n])
-        jb = -_adjoint(e)
+        d = _residual_jacobian(r)
+        ja = d @ _adjoint(edge_zinv[n])
+        jb = -(d @ _adjoint(e))
         w = edge_w[n]
         wr = w * r
         for fi, ji in ((fa, ja), (fb, jb)):

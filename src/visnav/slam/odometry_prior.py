@@ -30,15 +30,14 @@ class OdometryEdge:
         i: the earlier keyframe's id.
         j: the later keyframe's id.
         t_ij: the pose of keyframe ``j``'s camera in keyframe ``i``'s camera frame.
-        sigma_t: standard deviation (m) of each translation axis.
-        sigma_r: standard deviation (rad) of each rotation axis.
+        sigmas: standard deviations of the error twist in the camera frame (6,):
+            translation x, y, z (m), then rotation x, y, z (rad).
     """
 
     i: int
     j: int
     t_ij: FloatArray
-    sigma_t: float
-    sigma_r: float
+    sigmas: FloatArray
 
 
 def odometry_sigmas(config: SlamConfig, delta: FloatArray) -> tuple[float, float]:
@@ -76,7 +75,8 @@ def odometry_edges(
         ):
             t_ij = inverse(prev_kf.odom_pose) @ kf.odom_pose
             sigma_t, sigma_r = odometry_sigmas(config, t_ij)
-            edges.append(OdometryEdge(previous, kf.id, t_ij, sigma_t, sigma_r))
+            sigmas = np.array([sigma_t] * 3 + [sigma_r] * 3)
+            edges.append(OdometryEdge(previous, kf.id, t_ij, sigmas))
         previous = kf.id
     return edges
 

@@ -254,9 +254,7 @@ def _solve_compiled(
     edge_zinv = np.ascontiguousarray(
         np.array([inverse(e.t_ij) for _, _, e in pr.odometry]).reshape(n_edges, 4, 4)
     )
-    edge_w = np.array(
-        [[e.sigma_t**-2] * 3 + [e.sigma_r**-2] * 3 for _, _, e in pr.odometry]
-    ).reshape(n_edges, 6)
+    edge_w = np.array([e.sigmas**-2 for _, _, e in pr.odometry]).reshape(n_edges, 6)
     t_cw, positions, before, after = levenberg_marquardt_odometry(
         pr.t_cw(),
         pr.map.positions[pr.points].astype(np.float64),
@@ -309,7 +307,7 @@ def _solve_gtsam(
             meas2 = np.array([u, v])
             graph.add(gtsam.GenericProjectionFactorCal3_S2(meas2, models.mono[lvl], k, key, k_mono))
     for a, b, edge in pr.odometry:  # gtsam's Pose3 tangent is (rotation, translation)
-        sigmas = np.array([edge.sigma_r] * 3 + [edge.sigma_t] * 3)
+        sigmas = np.concatenate([edge.sigmas[3:], edge.sigmas[:3]])
         model = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
         graph.add(gtsam.BetweenFactorPose3(a, b, gtsam.Pose3(edge.t_ij), model))
     params = gtsam.LevenbergMarquardtParams()
