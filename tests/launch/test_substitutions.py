@@ -44,6 +44,12 @@ def ctx(tmp_path: Path) -> SubstitutionContext:
         ("$(optenv NOT_SET_X a b)", "a b"),
         ("$(optenv HOME_X dflt)", "/home/x"),
         ("a ) b", "a ) b"),  # a lone ')' outside a substitution is text
+        ("$(equals $(arg robot) car)", "true"),
+        ("$(not-equals $(arg robot) car)", "false"),
+        ("$(not-equals '$(arg empty)' '')", "false"),  # an empty arg, quoted
+        ("$(equals '$(arg empty)' '')", "true"),
+        ("$(not-equals '$(arg robot)' '')", "true"),
+        ("$(equals 'a b' \"a b\")", "true"),
     ],
 )
 def test_substitution_table(ctx: SubstitutionContext, text: str, expected: str) -> None:
@@ -72,6 +78,8 @@ def test_find_dirname_and_anon(ctx: SubstitutionContext, tmp_path: Path) -> None
         ("$(arg robot", LaunchParseError, "unclosed substitution"),
         ("$()", LaunchParseError, "empty substitution"),
         ("$(arg a b)", LaunchParseError, "expected 1 argument"),
+        ("$(equals $(arg empty) x)", LaunchParseError, "expected 2 argument"),
+        ("$(equals 'x y)", LaunchParseError, "close the quotes"),
         ("$(env NOT_SET_X)", LaunchArgError, "environment variable NOT_SET_X is not set"),
         ("$(find nopkg)", LaunchArgError, "--package nopkg=DIR"),
     ],

@@ -7,6 +7,9 @@
   forever; ``--timeout`` gives up with an error.
 * ``visnav map info PATH.yaml``: loads the map as map_server does and prints its size,
   resolution, origin, mode and free / occupied / unknown cell counts.
+* ``visnav map info PATH.npz``: a saved SLAM map (the slam node's ``database_path``,
+  :mod:`visnav.slam.map_file`): keyframes, map points, loops, time span, the extent of
+  the camera trajectory and the intrinsics.
 """
 
 from __future__ import annotations
@@ -38,8 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
     p.set_defaults(func=cmd_save)
 
-    p = sub.add_parser("info", help="size, resolution, origin and cell counts of a map YAML")
-    p.add_argument("path", help="map YAML (map_server format)")
+    p = sub.add_parser("info", help="describe a map YAML (map_server) or a SLAM map .npz")
+    p.add_argument("path", help="map YAML (map_server format) or SLAM map .npz")
     p.set_defaults(func=cmd_info)
 
 
@@ -81,6 +84,8 @@ def cmd_save(args: argparse.Namespace) -> int:
 
 def cmd_info(args: argparse.Namespace) -> int:
     """``map info``."""
+    if Path(args.path).suffix == ".npz":
+        return _slam_info(args.path)
     loaded = load_map(args.path)
     meta = loaded.metadata
     height, width = loaded.data.shape
@@ -98,4 +103,31 @@ def cmd_info(args: argparse.Namespace) -> int:
     for key in ("free", "occupied", "unknown"):
         share = 100.0 * counts[key] / total
         print(f"{key + ':':13} {counts[key]} ({share:.1f} %)")
+    return 0
+
+
+def _slam_info(path: str) -> int:
+    """``map info FILE.npz``: a saved SLAM map."""
+    from visnav.slam.map_file import load_slam_map, summarize_slam_map  # lazy: cv2
+
+    saved = load_slam_map(path)
+    info = summarize_slam_map(saved)
+    fx, fy, cx, cy, width, height = info["camera"]
+    print(f"SLAM map:     {path} (format version {saved.version})")
+    print(f"keyframes:    {info['keyframes']} (of {info['keyframes_total']} with culled ones), "
+          f"{info['with_odometry']} with an odometry pose")  # fmt: skip
+    print(f"map points:   {info['points']} ({info['points_cloud']} seen by >= 2 keyframes: "
+          f"the PLY), {info['observations']} observations")  # fmt: skip
+    print(f"loops:        {info['loops']}")
+    if info["start_s"] is None:
+        print("time span:    no keyframes")
+        return 0
+    print(f"time span:    {info['start_s']:.3f} .. {info['end_s']:.3f} s "
+          f"({info['duration_s']:.3f} s)")  # fmt: skip
+    lo, hi = info["extent_min"], info["extent_max"]
+    box = "  ".join(
+        f"{a} {low:.3f} .. {high:.3f}" for a, low, high in zip("xyz", lo, hi, strict=True)
+    )
+    print(f"camera path:  {box} m; {info['path_length_m']:.3f} m between keyframes")
+    print(f"camera:       {width:d} x {height:d}, fx {fx:g} fy {fy:g} cx {cx:g} cy {cy:g}")
     return 0

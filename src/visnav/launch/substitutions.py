@@ -13,6 +13,9 @@ Forms (``$(name arg ...)``, nestable: ``$(arg $(arg which))``):
                                         file's own package, or ``ROS_PACKAGE_PATH``
 ``$(dirname)``                          the directory of the current launch file
 ``$(anon name)``                        ``name`` made unique per launch (pid + counter)
+``$(equals A B)``, ``$(not-equals A B)``  ``true`` / ``false``: the two words compared as
+                                        text (ROS 2 Iron's); quote a word that may be
+                                        empty: ``$(not-equals '$(arg out)' '')``
 ======================================  ==============================================
 
 Text outside ``$(...)`` is kept as is; the result of a substitution is not scanned again.
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import difflib
 import os
+import shlex
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -241,6 +245,19 @@ def _sub_anon(ctx: SubstitutionContext, words: list[str]) -> str:
     return ctx.anon[name]
 
 
+def _sub_equals(ctx: SubstitutionContext, words: list[str]) -> str:
+    _words(ctx, "equals", words, (2, 2))
+    return "true" if words[0] == words[1] else "false"
+
+
+def _sub_not_equals(ctx: SubstitutionContext, words: list[str]) -> str:
+    _words(ctx, "not-equals", words, (2, 2))
+    return "false" if words[0] == words[1] else "true"
+
+
+_QUOTED = frozenset({"equals", "not-equals"})  # words may be quoted (an empty one: '')
+
+
 SUBSTITUTIONS: Mapping[str, Callable[[SubstitutionContext, list[str]], str]] = {
     "arg": _sub_arg,
     "var": _sub_arg,
@@ -250,6 +267,8 @@ SUBSTITUTIONS: Mapping[str, Callable[[SubstitutionContext, list[str]], str]] = {
     "find": _sub_find,
     "dirname": _sub_dirname,
     "anon": _sub_anon,
+    "equals": _sub_equals,
+    "not-equals": _sub_not_equals,
 }
 
 
@@ -264,6 +283,12 @@ def _evaluate(body: str, ctx: SubstitutionContext) -> str:
         msg = f"{ctx.prefix}empty substitution '$()': expected e.g. $(arg name)"
         raise LaunchParseError(msg)
     kind, rest = words[0], words[1:]
+    if kind in _QUOTED:
+        try:
+            rest = shlex.split(body)[1:]
+        except ValueError as exc:
+            msg = f"{ctx.prefix}$({body}): {exc}: close the quotes (an empty word is '')"
+            raise LaunchParseError(msg) from None
     handler = SUBSTITUTIONS.get(kind)
     if handler is None:
         close = difflib.get_close_matches(kind, list(SUBSTITUTIONS), n=1)

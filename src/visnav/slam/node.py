@@ -51,7 +51,9 @@ the robot until SLAM relocalises (each loss and recovery is logged). ``set_initi
 with ``initial_pose.x`` / ``.y`` / ``.yaw`` (nav2 AMCL's names) puts ``base_frame`` at
 that pose of the map at the first frame (default: the map starts equal to ``odom``).
 ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``) carries the counters every
-``diagnostic_period`` s (1.0; 0: only on loss and recovery).
+``diagnostic_period`` s (1.0; 0: only on loss and recovery). ``database_path`` (rtabmap's
+name; '' = none): when the node is destroyed the map is written there (.npz) with its points
+beside it (.ply; :mod:`visnav.slam.map_file`); a killed node saves nothing.
 
 Where the system runs (:mod:`visnav.slam.worker`): ``worker`` ``inline`` (the node's
 thread) or ``process`` (a process of its own, another core). ``result_latency`` (s of
@@ -96,6 +98,7 @@ from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse, level_pose
+from visnav.slam.map_file import check_database_path
 from visnav.slam.node_params import SlamParams
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
@@ -106,6 +109,7 @@ from visnav.slam.worker import (
     SlamWorker,
     SlamWorkerError,
     make_worker,
+    save_at_shutdown,
 )
 from visnav.tf import (
     Buffer,
@@ -189,6 +193,7 @@ class SlamNode(Node):
             raise SlamInputError(text)
         self._min_period_ns = round(1e9 / rate) if rate > 0 else 0
         self.odometry_prior = prm.odometry_prior
+        self.database_path = check_database_path(prm.database_path)
         self._last_stamp: int | None = None
         self.skipped = 0
         self.config = SlamConfig(
@@ -621,8 +626,12 @@ class SlamNode(Node):
         self._publish_dense()
 
     def destroy_node(self) -> None:
-        """Stop the worker (its process, if any), then remove the node."""
+        """Save the map (``database_path``), stop the worker (its process), remove the node."""
         worker = getattr(self, "worker", None)  # None when __init__ refused a parameter
+        level, text = save_at_shutdown(worker, getattr(self, "database_path", ""))
+        self.database_path = ""  # saved once, even if destroyed again
+        if text:  # info (written), warning (no frame) or error (not written)
+            getattr(self.get_logger(), level)(text)
         if worker is not None:
             worker.close()
         super().destroy_node()

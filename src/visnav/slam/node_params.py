@@ -65,3 +65,6 @@ class SlamParams:
     sensor: str = param("rgbd", description="rgbd or mono")
     mono_scale: str = param("depth", description="what scales a mono map: depth or odometry")
     diagnostic_period: float = param(1.0, description="s between /diagnostics (0: on changes)")
+    database_path: str = param(
+        "", description="the SLAM map .npz (+ .ply) written at shutdown ('': none; rtabmap's name)"
+    )

@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamError
+from visnav.slam.map_file import MapFiles, save_system_map
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
 from visnav.slam.vocabulary import Vocabulary
@@ -62,6 +63,7 @@ __all__ = [
     "SlamWorkerError",
     "WorkerResult",
     "make_worker",
+    "save_at_shutdown",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -176,6 +178,8 @@ class _Core:
             return self.system.dense_cloud(*args)
         if name == "stats":
             return self.stats()
+        if name == "save_map":
+            return save_system_map(self.system, *args)
         text = f"unknown SLAM worker call {name!r}"
         raise SlamWorkerError(text)
 
@@ -233,6 +237,15 @@ class SlamWorker:
     def dense_cloud(self, voxel: float) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
         """The dense coloured cloud, ``voxel`` m (after every queued frame)."""
         out: tuple[NDArray[np.float32], NDArray[np.uint8]] = self._call("dense_cloud", voxel)
+        return out
+
+    def save_map(self, path: str) -> MapFiles:
+        """Write the map to ``path`` (.npz) and its points beside it (.ply), in the worker.
+
+        Raises:
+            SlamError: the map cannot be written (a process worker: SlamWorkerError).
+        """
+        out: MapFiles = self._call("save_map", str(path))
         return out
 
     def stats(self) -> SlamStats:
@@ -550,6 +563,30 @@ def make_worker(
         )
     text = f"worker {kind!r}: expected one of {', '.join(WORKERS)} (inline: in the node's thread)"
     raise SlamWorkerError(text)
+
+
+def save_at_shutdown(worker: SlamWorker | None, database_path: str) -> tuple[str, str]:
+    """Save the map to ``database_path`` ('': nothing) before the worker closes.
+
+    Returns:
+        ``(level, text)`` for the node's log: ``info`` with the paths and counts,
+        ``warning`` when no frame started the system, ``error`` when writing failed;
+        ``("", "")`` without a ``database_path``.
+    """
+    if not database_path:
+        return "", ""
+    if worker is None:
+        return "warning", f"no frame was processed: no SLAM map written to {database_path}"
+    t0 = time.perf_counter()
+    try:
+        files = worker.save_map(database_path)
+    except (SlamError, OSError) as exc:  # OSError: the worker process's socket is gone
+        return "error", f"SLAM map not saved to {database_path}: {exc}"
+    text = (
+        f"SLAM map saved: {files.npz} ({files.keyframes} keyframes, {files.points} map "
+        f"points in {files.ply}; {time.perf_counter() - t0:.2f} s)"
+    )
+    return "info", text
 
 
 def _main(argv: list[str]) -> int:
