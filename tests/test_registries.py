@@ -77,9 +77,22 @@ ADDED = {
         "odometry_sigma_r_deg",
         "odometry_sigma_r_rel",
         "odometry_sigma_r_per_m",
+        # issue 14 item 4 (session 8): the SLAM map file written at shutdown (rtabmap's name)
+        "database_path",
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
     "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},
+    # issue 14 item 4 (session 8): gmapping's maxUrange / linearUpdate / angularUpdate, and the
+    # grid rebuilt on SLAM's corrected trajectory
+    "mapper": {
+        "max_usable_range",
+        "linear_update",
+        "angular_update",
+        "trajectory_topic",
+        "base_frame",
+        "odom_frame",
+        "rebuild_distance",
+    },
 }
 """Parameters added after the snapshot: adding one to a built-in node is a line here."""
 
