@@ -86,6 +86,7 @@ ADDED = {
     # grid rebuilt on SLAM's corrected trajectory
     "mapper": {
         "max_usable_range",
+        "far_clear_ratio",
         "linear_update",
         "angular_update",
         "trajectory_topic",

@@ -148,3 +148,23 @@ def test_clear_forgets_every_observation() -> None:
     assert (m.occupancy_values() == -1).all()
     m.integrate_scan(scan, np.eye(4))
     np.testing.assert_array_equal(m.occupancy_values(), first)
+
+
+def test_far_returns_clear_a_share_of_their_range() -> None:
+    """far_clear_ratio: space well short of a far return is free, its wall is not marked."""
+    m = OccupancyMapper(
+        width=12.0,
+        height=4.0,
+        origin_x=-1.0,
+        origin_y=-2.0,
+        grow=False,
+        max_usable_range=3.0,
+        far_clear_ratio=0.9,
+    )
+    m.integrate_scan(_scan(np.array([6.0, 6.0, 6.0]), fov=0.02), np.eye(4))
+    assert (m.occupancy_values() == 100).sum() == 0
+    known_x = np.nonzero(m.known.any(axis=0))[0]
+    assert known_x.max() * m.resolution + m.origin_x == pytest.approx(5.4, abs=0.06)
+    for bad in (-0.1, 1.0):
+        with pytest.raises(MappingError, match="far_clear_ratio"):
+            OccupancyMapper(far_clear_ratio=bad)

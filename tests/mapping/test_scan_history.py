@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from visnav.mapping.scan_history import ScanHistory, pose_displacement
+from visnav.mapping.scan_history import PathProbe, ScanHistory, pose_displacement
 from visnav.msgs import Header, LaserScan, Path, PoseStamped, make, ns_to_time
 from visnav.tf.transforms import matrix_to_pose
 
@@ -104,3 +104,13 @@ def test_displacement_is_the_planar_shift_plus_reach_times_the_turn(
     b = _pose(x + dx, y + dy, yaw + dyaw, z=3.0)[None]  # z does not count
     got = pose_displacement(a, b, reach)[0]
     assert got == pytest.approx(math.hypot(dx, dy) + reach * abs(dyaw), abs=1e-9)
+
+
+def test_a_probe_tells_an_appended_path_from_a_corrected_one() -> None:
+    items = [(k * S, _pose(0.1 * k, 0.0, 0.0)) for k in range(100)]
+    probe = PathProbe.of(_path(items))
+    assert probe.same_past(_path([*items, (100 * S, _pose(10.0, 0.0, 0.0))]))  # appended
+    moved = [(t, _pose(0.0, 0.01, 0.0) @ m) for t, m in items]  # a loop moved the past 1 cm
+    assert not probe.same_past(_path(moved))
+    assert not probe.same_past(_path(items[:50]))  # shorter: not the same past
+    assert not PathProbe().same_past(_path(items))  # nothing probed yet

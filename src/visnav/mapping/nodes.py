@@ -14,6 +14,8 @@
   ``free_on_max_range`` (true), ``max_free_range`` (5.0), ``trinary`` (true),
   ``map_update_interval`` (1.0 s; gmapping's 5.0 is slow for exploring),
   ``max_usable_range`` (gmapping's ``maxUrange``: beams cropped to it; 0: not cropped),
+  ``far_clear_ratio`` (a cropped return clears this share of its range instead; 0: only up
+  to ``max_usable_range``, as gmapping),
   ``linear_update`` / ``angular_update`` (gmapping's ``linearUpdate`` /
   ``angularUpdate``: a scan is integrated after the sensor moved this far or turned this
   much; 0 / 0, every scan, unlike gmapping's 1.0 m / 0.5 rad, which suit a particle
@@ -45,7 +47,7 @@ from visnav.graph.param_dataclass import declare_params, param
 from visnav.graph.qos import qos_profile_sensor_data
 from visnav.mapping.costmap_ros import MAP_QOS, CostmapROS
 from visnav.mapping.occupancy import OccupancyMapper
-from visnav.mapping.scan_history import ScanHistory, pose_displacement
+from visnav.mapping.scan_history import PathProbe, ScanHistory, pose_displacement
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import LaserScan, MapMetaData, OccupancyGrid, Path
 from visnav.tf.buffer import Buffer
@@ -84,6 +86,7 @@ class MapperParams:
     max_free_range: float = param(5.0, description="longest clearing ray (m)")
     map_update_interval: float = param(1.0, description="map publishing period (s)")
     max_usable_range: float = param(0.0, description="beams cropped to this range (m; 0: none)")
+    far_clear_ratio: float = param(0.0, description="share of a cropped return's range cleared")
     linear_update: float = param(0.0, description="integrate a scan after moving (m; 0: all)")
     angular_update: float = param(0.0, description="integrate a scan after turning (rad; 0: all)")
     trajectory_topic: str = param("", description="nav_msgs/Path to rebuild on ('': never)")
@@ -137,12 +140,14 @@ class MapperNode(Node):
             free_on_max_range=p.free_on_max_range,
             max_free_range=p.max_free_range,
             max_usable_range=p.max_usable_range if p.max_usable_range > 0 else math.inf,
+            far_clear_ratio=p.far_clear_ratio,
         )
         self._keep = bool(p.trajectory_topic)
         self._gate = self._keep or p.linear_update > 0 or p.angular_update > 0
         self.history = ScanHistory(p.linear_update, p.angular_update, keep=self._keep)
         self.rebuilds = 0
         self._path_poses = np.zeros((0, 4, 4))
+        self._probe = PathProbe()
         if self._keep:
             self.create_subscription(Path, p.trajectory_topic, self._on_path, 1)
         interval = p.map_update_interval
@@ -184,6 +189,9 @@ class MapperNode(Node):
 
     def _on_path(self, msg: Path) -> None:
         """Rebuild the grid when the trajectory's past moved a kept scan (module docstring)."""
+        if self._probe.same_past(msg):  # only appended: nothing to rebuild
+            return
+        self._probe = PathProbe.of(msg)
         poses = self.history.poses_from_path(msg)
         if poses is None:
             return

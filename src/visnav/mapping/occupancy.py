@@ -13,7 +13,10 @@ Beams with a return are those with ``range_min <= r < range_max``; with
 ``free_on_max_range`` a +inf or ``>= range_max`` reading clears along its ray up to
 ``min(range_max, max_free_range)`` without marking; NaN readings are ignored.
 ``max_usable_range`` is gmapping's ``maxUrange``: every beam is cropped to it, so a
-return beyond it only clears space up to it. An RGB-D camera's depth error grows with
+return beyond it only clears space up to it; with ``far_clear_ratio`` r > 0 such a return
+(and a no-return beam) clears up to r times its range instead (at least up to
+``max_usable_range``), since the space well short of a far return is free even where the
+return is too imprecise to place a wall. An RGB-D camera's depth error grows with
 the square of the range (4 cm at 5 m for a Kinect v1, whose specified range ends at
 4 m): walls mapped from far returns come out thick and a few cells off.
 
@@ -69,6 +72,8 @@ class OccupancyMapper:
         free_on_max_range: clear along no-return beams (True).
         max_free_range: farthest clearing of a no-return beam, metres (5.0).
         max_usable_range: beams are cropped to this range, metres (inf: not cropped).
+        far_clear_ratio: a return beyond ``max_usable_range`` clears this share of its
+            range (0: up to ``max_usable_range`` only).
 
     Raises:
         MappingError: probabilities outside (0, 1) or in the wrong order, a bad size.
@@ -93,6 +98,7 @@ class OccupancyMapper:
         free_on_max_range: bool = True,
         max_free_range: float = 5.0,
         max_usable_range: float = math.inf,
+        far_clear_ratio: float = 0.0,
     ) -> None:
         for name, p in (
             ("prob_hit", prob_hit),
@@ -112,6 +118,12 @@ class OccupancyMapper:
                 f"occupancy mapper: expected prob_miss < 0.5 < prob_hit ({prob_miss}, {prob_hit}), "
                 f"clamp_min < clamp_max ({clamp_min}, {clamp_max}) and free_thresh < "
                 f"occupied_thresh ({free_thresh}, {occupied_thresh})"
+            )
+            raise MappingError(msg)
+        if not 0.0 <= far_clear_ratio < 1.0:
+            msg = (
+                f"occupancy mapper: far_clear_ratio is {far_clear_ratio}; expected a share in "
+                "[0, 1) of a far return's range (0: clear only up to max_usable_range)"
             )
             raise MappingError(msg)
         if not max_usable_range > 0:
@@ -145,6 +157,7 @@ class OccupancyMapper:
         self.free_on_max_range = free_on_max_range
         self.max_free_range = float(max_free_range)
         self.max_usable_range = float(max_usable_range)
+        self.far_clear_ratio = float(far_clear_ratio)
         self.scans = 0
         self._cache = ScanCache()
 
@@ -175,7 +188,12 @@ class OccupancyMapper:
             cropped = (ranges >= usable) & (ranges < rmax)
             nohit = (np.isposinf(ranges) | (ranges >= rmax)) & self.free_on_max_range
         use = hit | nohit | cropped
-        clear = np.where(cropped, usable, min(rmax, self.max_free_range, usable))
+        free_len = min(rmax, self.max_free_range)
+        if self.far_clear_ratio > 0:
+            far = np.maximum(usable, self.far_clear_ratio * np.where(cropped, ranges, 0.0))
+            clear = np.where(cropped, far, free_len)
+        else:
+            clear = np.where(cropped, usable, min(free_len, usable))
         r = np.where(hit, ranges, clear)[use]
         local = np.stack([r * c.cos[use], r * c.sin[use], np.zeros_like(r)], axis=1)
         world = local @ T_map_scan[:3, :3].T + T_map_scan[:3, 3]

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import LaserScan, Path
 
-__all__ = ["ScanHistory", "pose_displacement"]
+__all__ = ["PathProbe", "ScanHistory", "pose_displacement"]
 
 FloatArray = NDArray[np.float64]
 
@@ -68,6 +68,45 @@ def _path_matrices(path: Path) -> tuple[NDArray[np.int64], FloatArray]:
         poses[i, :2, :2] = [[c, -s], [s, c]]
         poses[i, 0, 3], poses[i, 1, 3] = p.x, p.y
     return stamps, poses
+
+
+_PROBES = 32  # poses of a path compared to tell an appended path from a corrected one
+
+
+@dataclass(frozen=True)
+class PathProbe:
+    """A few poses of a path (index, stamp, x, y, z, qz, qw), to see whether its past changed.
+
+    A SLAM node republishes its whole trajectory every second; between loop closures only
+    new poses are appended. Comparing :data:`_PROBES` evenly spaced poses of the earlier
+    path with the same indices of the new one tells the two cases apart without decoding
+    thousands of poses per second.
+    """
+
+    rows: tuple[tuple[int, int, float, float, float, float, float], ...] = ()
+
+    @staticmethod
+    def of(path: Path) -> PathProbe:
+        """The probe of ``path``."""
+        n = len(path.poses)
+        step = max(1, n // _PROBES)
+        rows = []
+        for i in range(0, n, step):
+            ps = path.poses[i]
+            p, q = ps.pose.position, ps.pose.orientation
+            rows.append((i, time_to_ns(ps.header.stamp), p.x, p.y, p.z, q.z, q.w))
+        return PathProbe(tuple(rows))
+
+    def same_past(self, path: Path) -> bool:
+        """Whether ``path`` holds the probed poses unchanged (it only grew)."""
+        if not self.rows or len(path.poses) < self.rows[-1][0] + 1:
+            return False
+        for i, stamp, x, y, z, qz, qw in self.rows:
+            ps = path.poses[i]
+            p, q = ps.pose.position, ps.pose.orientation
+            if (time_to_ns(ps.header.stamp), p.x, p.y, p.z, q.z, q.w) != (stamp, x, y, z, qz, qw):
+                return False
+        return True
 
 
 @dataclass
