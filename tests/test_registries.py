@@ -89,6 +89,7 @@ ADDED = {
         "far_clear_ratio",
         "linear_update",
         "angular_update",
+        "temporal_update",
         "trajectory_topic",
         "base_frame",
         "odom_frame",

@@ -114,3 +114,15 @@ def test_a_probe_tells_an_appended_path_from_a_corrected_one() -> None:
     assert not probe.same_past(_path(moved))
     assert not probe.same_past(_path(items[:50]))  # shorter: not the same past
     assert not PathProbe().same_past(_path(items))  # nothing probed yet
+
+
+def test_a_robot_standing_still_keeps_a_scan_per_temporal_update() -> None:
+    h = ScanHistory(linear_update=0.1, angular_update=0.1, temporal_update=0.5)
+    still = _pose(0.0, 0.0, 0.0)
+    kept = []
+    for k in range(21):  # 1 s at 20 Hz, not moving
+        stamp = k * S // 20
+        if h.wants(still, stamp):
+            h.add(_scan(stamp), still, np.eye(4))
+            kept.append(k)
+    assert kept == [0, 10, 20]

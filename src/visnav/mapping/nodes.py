@@ -19,7 +19,8 @@
   ``linear_update`` / ``angular_update`` (gmapping's ``linearUpdate`` /
   ``angularUpdate``: a scan is integrated after the sensor moved this far or turned this
   much; 0 / 0, every scan, unlike gmapping's 1.0 m / 0.5 rad, which suit a particle
-  filter's cost, not a known-pose grid's).
+  filter's cost, not a known-pose grid's), ``temporal_update`` (gmapping's
+  ``temporalUpdate``: ... or after this many seconds; -1: not by time).
 
   With ``trajectory_topic`` (a ``nav_msgs/Path`` of ``base_frame`` in the map, e.g.
   the SLAM node's ``slam/path``) the integrated scans are kept with their
@@ -89,6 +90,7 @@ class MapperParams:
     far_clear_ratio: float = param(0.0, description="share of a cropped return's range cleared")
     linear_update: float = param(0.0, description="integrate a scan after moving (m; 0: all)")
     angular_update: float = param(0.0, description="integrate a scan after turning (rad; 0: all)")
+    temporal_update: float = param(-1.0, description="... or after this many s (<= 0: not by time)")
     trajectory_topic: str = param("", description="nav_msgs/Path to rebuild on ('': never)")
     base_frame: str = param("base_footprint", description="frame of the trajectory's poses")
     odom_frame: str = param("odom", description="continuous frame the kept scans are held in")
@@ -144,7 +146,9 @@ class MapperNode(Node):
         )
         self._keep = bool(p.trajectory_topic)
         self._gate = self._keep or p.linear_update > 0 or p.angular_update > 0
-        self.history = ScanHistory(p.linear_update, p.angular_update, keep=self._keep)
+        self.history = ScanHistory(
+            p.linear_update, p.angular_update, keep=self._keep, temporal_update=p.temporal_update
+        )
         self.rebuilds = 0
         self._path_poses = np.zeros((0, 4, 4))
         self._probe = PathProbe()
@@ -181,7 +185,7 @@ class MapperNode(Node):
                 )
             except TransformException as exc:
                 return self._drop(msg, exc)
-            if not self.history.wants(t_odom):
+            if not self.history.wants(t_odom, stamp):
                 return True
             self.history.add(msg, t_odom, t_base)
         self.mapper.integrate_scan(msg, T)

@@ -17,8 +17,9 @@ the base frame in the map):
   odometry pose.
 
 Scans are kept as gmapping processes them: one whenever the sensor moved
-``linear_update`` metres or turned ``angular_update`` radians since the last kept scan
-(0 and 0: every scan).
+``linear_update`` metres or turned ``angular_update`` radians since the last kept scan, or
+``temporal_update`` seconds passed (0 and 0: every scan). Without the time rule a robot
+standing still integrates one scan, and a log-odds cell needs several misses to be free.
 """
 
 from __future__ import annotations
@@ -118,24 +119,30 @@ class ScanHistory:
         angular_update: ... or this much sensor rotation (rad; 0: not by rotation); both
             0: every scan.
         keep: store the scans (else only the last pose, for :meth:`wants`).
+        temporal_update: ... or when this many seconds passed since the last kept scan
+            (gmapping's ``temporalUpdate``; <= 0: not by time).
     """
 
     linear_update: float = 0.0
     angular_update: float = 0.0
     keep: bool = True
+    temporal_update: float = 0.0
     scans: list[LaserScan] = field(default_factory=list)
     stamps: list[int] = field(default_factory=list)
     t_odom_sensor: list[FloatArray] = field(default_factory=list)
     t_base_sensor: list[FloatArray] = field(default_factory=list)
     last: FloatArray | None = None
+    last_ns: int = 0
 
     def __len__(self) -> int:
         return len(self.scans)
 
-    def wants(self, t_odom_sensor: FloatArray) -> bool:
-        """Whether a scan at this odometry-frame sensor pose is to be kept (and integrated)."""
+    def wants(self, t_odom_sensor: FloatArray, stamp_ns: int = 0) -> bool:
+        """Whether a scan at this odometry-frame sensor pose (and stamp) is to be kept."""
         last = self.last
         if last is None or (self.linear_update <= 0 and self.angular_update <= 0):
+            return True
+        if self.temporal_update > 0 and stamp_ns - self.last_ns >= self.temporal_update * 1e9:
             return True
         moved = float(np.linalg.norm(t_odom_sensor[:2, 3] - last[:2, 3]))
         rel = last[:3, :3].T @ t_odom_sensor[:3, :3]
@@ -150,6 +157,7 @@ class ScanHistory:
     ) -> None:
         """Keep ``scan`` (or only its pose, for :meth:`wants`, without ``keep``)."""
         self.last = np.array(t_odom_sensor, dtype=np.float64)
+        self.last_ns = time_to_ns(scan.header.stamp)
         if not self.keep:
             return
         self.scans.append(scan)
