@@ -90,7 +90,7 @@ class MapperParams:
     far_clear_ratio: float = param(0.0, description="share of a cropped return's range cleared")
     linear_update: float = param(0.0, description="integrate a scan after moving (m; 0: all)")
     angular_update: float = param(0.0, description="integrate a scan after turning (rad; 0: all)")
-    temporal_update: float = param(-1.0, description="... or after this many s (<= 0: not by time)")
+    temporal_update: float = param(-1.0, description="integrate a scan every N s (<= 0: off)")
     trajectory_topic: str = param("", description="nav_msgs/Path to rebuild on ('': never)")
     base_frame: str = param("base_footprint", description="frame of the trajectory's poses")
     odom_frame: str = param("odom", description="continuous frame the kept scans are held in")
