@@ -176,17 +176,19 @@ class MapperNode(Node):
             return self._drop(msg, exc)
         if self._gate:
             p = self.params
+            frame = msg.header.frame_id
             try:
-                t_odom = self.tf_buffer.lookup_transform_matrix(
-                    p.odom_frame, msg.header.frame_id, stamp
-                )
-                t_base = self.tf_buffer.lookup_transform_matrix(
-                    p.base_frame, msg.header.frame_id, stamp
+                t_odom = self.tf_buffer.lookup_transform_matrix(p.odom_frame, frame, stamp)
+                if not self.history.wants(t_odom, stamp):
+                    return True
+                # the base pose only serves a rebuild: looked up only for scans that are kept
+                t_base = (
+                    self.tf_buffer.lookup_transform_matrix(p.base_frame, frame, stamp)
+                    if self._keep
+                    else None
                 )
             except TransformException as exc:
                 return self._drop(msg, exc)
-            if not self.history.wants(t_odom, stamp):
-                return True
             self.history.add(msg, t_odom, t_base)
         self.mapper.integrate_scan(msg, T)
         return True

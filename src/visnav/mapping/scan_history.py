@@ -30,8 +30,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from visnav.mapping.errors import MappingError
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import LaserScan, Path
+from visnav.tf.transforms import yaw_from_matrix
 
 __all__ = ["PathProbe", "ScanHistory", "pose_displacement"]
 
@@ -146,22 +148,29 @@ class ScanHistory:
             return True
         moved = float(np.linalg.norm(t_odom_sensor[:2, 3] - last[:2, 3]))
         rel = last[:3, :3].T @ t_odom_sensor[:3, :3]
-        turned = abs(math.atan2(rel[1, 0], rel[0, 0]))
+        turned = abs(yaw_from_matrix(rel))
         return (0 < self.linear_update <= moved) or (0 < self.angular_update <= turned)
 
     def add(
         self,
         scan: LaserScan,
         t_odom_sensor: FloatArray,
-        t_base_sensor: FloatArray,
+        t_base_sensor: FloatArray | None,
     ) -> None:
-        """Keep ``scan`` (or only its pose, for :meth:`wants`, without ``keep``)."""
+        """Keep ``scan`` (or only its pose, for :meth:`wants`, without ``keep``).
+
+        Raises:
+            MappingError: ``keep`` without the scan's base-frame pose.
+        """
         self.last = np.array(t_odom_sensor, dtype=np.float64)
         self.last_ns = time_to_ns(scan.header.stamp)
         if not self.keep:
             return
+        if t_base_sensor is None:
+            msg = "scan history: a kept scan needs its pose in the base frame"
+            raise MappingError(msg)
         self.scans.append(scan)
-        self.stamps.append(time_to_ns(scan.header.stamp))
+        self.stamps.append(self.last_ns)
         self.t_odom_sensor.append(np.array(t_odom_sensor, dtype=np.float64))
         self.t_base_sensor.append(np.array(t_base_sensor, dtype=np.float64))
 
