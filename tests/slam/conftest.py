@@ -7,8 +7,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
+from visnav.graph import Node
+from visnav.msgs import CameraInfo, Header, Image
+from visnav.msgs.image import numpy_to_image
+from visnav.msgs.time import ns_to_time
 from visnav.slam.camera import CameraIntrinsics
-from visnav.slam.synthetic import SyntheticRoom, circle_trajectory
+from visnav.slam.synthetic import SyntheticRoom, camera_info_for, circle_trajectory
 
 SMALL = CameraIntrinsics(125.0, 125.0, 79.5, 59.5, 160, 120)
 
@@ -46,3 +50,22 @@ def short_sequence() -> Sequence:
 def loop_sequence() -> Sequence:
     """A full loop and a bit (150 frames): the end revisits the start."""
     return make_sequence(150, turns=1.15)
+
+
+def feed_rgbd(feeder: Node, seq: Sequence, n: int) -> None:
+    """Publish the first ``n`` frames of ``seq`` (rgb, depth, camera_info) from ``feeder``.
+
+    Each frame is spun through the feeder's context before the next, as a camera driver's
+    frames arrive one by one.
+    """
+    img = feeder.create_publisher(Image, "rgb/image", 10)
+    dep = feeder.create_publisher(Image, "depth/image", 10)
+    inf = feeder.create_publisher(CameraInfo, "rgb/camera_info", 10)
+    info = camera_info_for(seq.camera, frame_id="camera_optical")
+    for i in range(n):
+        header = Header(stamp=ns_to_time(int(seq.stamps_ns[i])), frame_id="camera_optical")
+        info.header = header
+        inf.publish(info)
+        img.publish(numpy_to_image(seq.rgb[i], "rgb8", header=header))
+        dep.publish(numpy_to_image(seq.depth[i], "32FC1", header=header))
+        feeder.context.spin_some()

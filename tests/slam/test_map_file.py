@@ -19,9 +19,6 @@ from hypothesis.extra import numpy as hnp
 
 from visnav.errors import VisnavError
 from visnav.graph import Context, Node
-from visnav.msgs import CameraInfo, Header, Image
-from visnav.msgs.image import numpy_to_image
-from visnav.msgs.time import ns_to_time
 from visnav.slam import SlamConfig, SlamSystem
 from visnav.slam.features import Frame
 from visnav.slam.map_file import (
@@ -37,10 +34,9 @@ from visnav.slam.map_file import (
 from visnav.slam.node import SlamNode
 from visnav.slam.optimizer import LoopConstraint
 from visnav.slam.slam_map import SlamMap
-from visnav.slam.synthetic import camera_info_for
 from visnav.slam.worker import InlineWorker, ProcessWorker, save_at_shutdown
 
-from .conftest import SMALL, Sequence
+from .conftest import SMALL, Sequence, feed_rgbd
 
 CONFIG = SlamConfig(n_features=400, vocabulary_keyframes=6, loop_min_inliers=30)
 
@@ -321,21 +317,6 @@ def test_missing_and_non_npz_files(tmp_path: Path) -> None:
     assert check_database_path("") == ""
 
 
-def _feed(ctx: Context, seq: Sequence, n: int) -> None:
-    feeder = Node("feeder", context=ctx)
-    img = feeder.create_publisher(Image, "rgb/image", 10)
-    dep = feeder.create_publisher(Image, "depth/image", 10)
-    inf = feeder.create_publisher(CameraInfo, "rgb/camera_info", 10)
-    info = camera_info_for(seq.camera, frame_id="camera_optical")
-    for i in range(n):
-        header = Header(stamp=ns_to_time(int(seq.stamps_ns[i])), frame_id="camera_optical")
-        info.header = header
-        inf.publish(info)
-        img.publish(numpy_to_image(seq.rgb[i], "rgb8", header=header))
-        dep.publish(numpy_to_image(seq.depth[i], "32FC1", header=header))
-        ctx.spin_some()
-
-
 def test_node_saves_its_map_when_destroyed(
     short_sequence: Sequence, tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -345,7 +326,7 @@ def test_node_saves_its_map_when_destroyed(
         slam = SlamNode(
             context=ctx, parameter_overrides={**overrides, "database_path": str(target)}
         )
-        _feed(ctx, short_sequence, 10)
+        feed_rgbd(Node("feeder", context=ctx), short_sequence, 10)
         assert slam.system is not None
         before = slam.system.trajectory().positions.copy()
         keyframes = len(slam.system.map.keyframes)

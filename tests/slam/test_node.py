@@ -28,7 +28,7 @@ from visnav.slam.synthetic import camera_info_for
 from visnav.tf import Buffer, matrix_to_transform, pose_to_matrix
 from visnav.tf.ros import StaticTransformBroadcaster, TransformBroadcaster, TransformListener
 
-from .conftest import Sequence
+from .conftest import Sequence, feed_rgbd
 
 T_BASE_CAM = np.array([[0, 0, 1, 0.1], [-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=float)
 
@@ -139,21 +139,11 @@ def test_node_publishes_the_whole_path_at_most_every_path_publish_period(
         },
     )
     feeder = Node("feeder", context=ctx)
-    img = feeder.create_publisher(Image, "rgb/image", 10)
-    dep = feeder.create_publisher(Image, "depth/image", 10)
-    inf = feeder.create_publisher(CameraInfo, "rgb/camera_info", 10)
     poses: list[PoseStamped] = []
     paths: list[Path] = []
     feeder.create_subscription(PoseStamped, "slam/pose", poses.append, 10)
     feeder.create_subscription(Path, "slam/path", paths.append, 10)
-    info = camera_info_for(seq.camera, frame_id="camera_optical")
-    for i in range(10):
-        header = Header(stamp=ns_to_time(int(seq.stamps_ns[i])), frame_id="camera_optical")
-        info.header = header
-        inf.publish(info)
-        img.publish(numpy_to_image(seq.rgb[i], "rgb8", header=header))
-        dep.publish(numpy_to_image(seq.depth[i], "32FC1", header=header))
-        ctx.spin_some()
+    feed_rgbd(feeder, seq, 10)
     assert len(poses) == 10
     assert [len(p.poses) for p in paths] == [1, 4, 7, 10]  # frames 0, 3, 6, 9
     assert paths[-1].poses[-1].header.stamp == poses[-1].header.stamp
