@@ -14,7 +14,8 @@ prints goals reached, collisions, path ratio (car) or speed / clearance / planni
   sweep run has the same summary (but wall-clock keys) and a byte-identical ground-truth
   trajectory.
 * ``--map TEMPLATE`` (car): localise in a saved map instead of mapping (``visnav run car
-  --map``: map_server + amcl); ``{seed}`` in the path is replaced by each run's seed, so
+  --map``: SLAM in localisation mode in the ``slam_map.npz`` beside it; ``--map-localization
+  amcl``: AMCL on the scan); ``{seed}`` in the path is replaced by each run's seed, so
   ``--map runs/first/{seed}/map.yaml`` gives every seed the map its own earlier run wrote
   (issue 14's "map once, then navigate"). It is the sweep option ``--set map=TEMPLATE``:
   the same sweep, outputs and backends as without it; a missing or broken map of any seed
@@ -58,6 +59,7 @@ def _sweep(args: argparse.Namespace, out: Path, jobs: int) -> tuple[dict[str, An
         sets["duration"] = [args.duration]
     if args.map is not None:
         sets.update(parse_sets([f"map={args.map}"]))
+        sets.update(parse_sets([f"map_localization={args.map_localization}"]))
     t0 = time.perf_counter()
     state = run_sweep(
         args.scenario,
@@ -111,8 +113,9 @@ def _print_runs(scenario: str, state: dict[str, Any]) -> None:
 
 def _print_loop_acceptance(rows: list[dict[str, Any]], goals: int, reached: int) -> None:
     """Issue 14's acceptance of SLAM in the loop (noise on): one verdict line per figure."""
-    loc = [r["localization"] for r in rows if r.get("localization", {}).get("source") == "slam"]
-    amcl = not loc  # --map: amcl's figures, without the drift and real-time targets
+    slam = ("slam", "slam_localization")  # mapping, or localising in a saved SLAM map
+    loc = [r["localization"] for r in rows if r.get("localization", {}).get("source") in slam]
+    amcl = not loc  # --map with amcl: its figures, without the drift and real-time targets
     loc = loc or [
         r["localization"] for r in rows if r.get("localization", {}).get("source") == "amcl"
     ]
@@ -172,6 +175,8 @@ def _check_run(args: argparse.Namespace, root: Path, state: dict[str, Any]) -> i
         cmd += ["--ideal-sensors"] if args.ideal_sensors else []
         map_path = run["options"].get("map")  # the run's map, {seed} replaced
         cmd += ["--map", map_path] if map_path else []
+        loc = run["options"].get("map_localization")
+        cmd += ["--map-localization", loc] if map_path and loc else []
         env = {**os.environ, "VISNAV_DOMAIN": str(3_000_000 + os.getpid() % 100_000)}
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
@@ -198,6 +203,12 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=None, help="sim seconds per run")
     parser.add_argument(
         "--map", default=None, help="car: localise in this map ({seed}: each run's seed)"
+    )
+    parser.add_argument(
+        "--map-localization",
+        choices=["slam", "amcl"],
+        default="slam",
+        help="car with --map: what localises in it (visnav run car --map-localization)",
     )
     parser.add_argument("--check-run", action="store_true", help="compare with visnav run")
     parser.add_argument(

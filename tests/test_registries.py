@@ -79,6 +79,7 @@ ADDED = {
         "odometry_sigma_r_per_m",
         # issue 14 item 4 (session 8): the SLAM map file written at shutdown (rtabmap's name)
         "database_path",
+        "localization",  # session 9: SLAM in localisation mode in database_path
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
     "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},

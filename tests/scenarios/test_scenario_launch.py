@@ -20,7 +20,9 @@ from visnav.description.robots import resolve_robot
 from visnav.description.world import load_world
 from visnav.graph import Context
 from visnav.launch.loader import load_launch
+from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.runner import SCENARIOS, launch_file, run_scenario
+from visnav.scenarios.saved_map import saved_map_launch_args
 
 RUN_KEYS = ("wall_duration_s", "real_time_factor", "bag", "topics", "sim_duration_s")
 """Keys of the run, not the task: `visnav launch` has no bag, and its observer's sim time is
@@ -41,6 +43,52 @@ def test_builtin_scenarios_are_launch_files_shipped_in_the_package() -> None:
         sim = nodes["sim"]
         assert sim.params["lockstep"] is True  # type: ignore[attr-defined]
         assert sim.process == "shared"  # type: ignore[attr-defined]
+
+
+def test_car_in_a_saved_map_localises_with_slam_or_amcl() -> None:
+    x, y, _yaw = load_world("office", seed=0).metadata["spawn"]
+    args = saved_map_launch_args("/runs/a/map.yaml")
+    assert args["slam_map"] == "/runs/a/slam_map.npz"
+    nodes = _nodes("car", out="/runs/b", **args)
+    assert "amcl" not in nodes
+    assert "mapper" not in nodes
+    assert "map_to_odom" not in nodes
+    assert nodes["map_server"].params["yaml_filename"] == "/runs/a/map.yaml"  # type: ignore[attr-defined]
+    slam = nodes["slam"].params  # type: ignore[attr-defined]
+    assert slam["localization"] is True
+    assert slam["database_path"] == "/runs/a/slam_map.npz"  # read; /runs/b gets no SLAM map
+    assert (slam["publish_tf"], slam["odom_frame"]) == (True, "odom")
+    assert (slam["initial_pose.x"], slam["initial_pose.y"]) == pytest.approx((x, y))
+    observer = nodes["observer"].params  # type: ignore[attr-defined]
+    assert observer["localization_source"] == "slam_localization"
+    amcl = _nodes("car", out="/runs/b", **saved_map_launch_args("/runs/a/map.yaml", "amcl"))
+    assert "amcl" in amcl
+    assert "map_server" in amcl
+    beside = amcl["slam"].params  # type: ignore[attr-defined]
+    assert beside["publish_tf"] is False
+    assert "localization" not in beside  # the default, false
+    assert beside["database_path"] == "/runs/b/slam_map.npz"
+    assert amcl["observer"].params["localization_source"] == "amcl"  # type: ignore[attr-defined]
+    no_slam = _nodes("car", slam="false", **saved_map_launch_args("/m/map.yaml", slam=False))
+    assert "amcl" in no_slam
+    assert "slam" not in no_slam
+    mapping = _nodes("car", out="/runs/a")["slam"].params  # type: ignore[attr-defined]
+    assert (mapping["localization"], mapping["database_path"]) == (False, "/runs/a/slam_map.npz")
+
+
+def test_saved_map_args_refuse_a_missing_slam_map_and_unknown_sources(tmp_path: Path) -> None:
+    yaml = tmp_path / "map.yaml"
+    with pytest.raises(ScenarioError) as info:
+        saved_map_launch_args(str(yaml), check=True)
+    text = str(info.value)
+    assert str(tmp_path / "slam_map.npz") in text
+    assert "--map-localization amcl" in text
+    assert "\n" not in text
+    assert "slam_map" not in saved_map_launch_args(str(yaml), "amcl", check=True)
+    (tmp_path / "slam_map.npz").write_bytes(b"")
+    assert saved_map_launch_args(str(yaml), check=True)["use_map"] == "true"
+    with pytest.raises(ScenarioError, match=r"map localization 'gps': expected one of slam, amcl"):
+        saved_map_launch_args(str(yaml), "gps")
 
 
 def test_car_file_matches_the_robot_and_the_world() -> None:
@@ -68,7 +116,8 @@ def test_car_file_matches_the_robot_and_the_world() -> None:
     assert (slam["publish_tf"], slam["odom_frame"], slam["worker"]) == (True, "odom", "process")
     assert (slam["initial_pose.x"], slam["initial_pose.y"]) == pytest.approx((x, y))
     # one spawn pose (the lets spawn_x/y/yaw) for the static map -> odom, SLAM and AMCL
-    amcl = _nodes("car", use_map="true", map="/tmp/m.yaml")["amcl"].params  # type: ignore[attr-defined]
+    in_map = _nodes("car", use_map="true", map="/tmp/m.yaml", map_localization="amcl")
+    amcl = in_map["amcl"].params  # type: ignore[attr-defined]
     for start in (slam, amcl):
         assert (start["initial_pose.x"], start["initial_pose.y"], start["initial_pose.yaw"]) == (
             pytest.approx((x, y, yaw))

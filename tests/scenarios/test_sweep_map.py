@@ -30,8 +30,12 @@ from visnav.scenarios.sweep_spec import (
 from visnav.scenarios.sweep_worker import RunResult
 
 
-def _write_map(path: Path) -> Path:
-    """A small valid map_server map (map.yaml + map.pgm) in ``path``'s directory."""
+def _write_map(path: Path, *, slam_map: bool = True) -> Path:
+    """A small valid map_server map (map.yaml + map.pgm) in ``path``'s directory.
+
+    With ``slam_map`` a ``slam_map.npz`` beside it too (the sweep checks only that it is
+    there; the SLAM node reads it).
+    """
     import numpy as np
 
     from visnav.mapping.map_io import MapMetadata, OccupancyMap
@@ -50,6 +54,8 @@ def _write_map(path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     save_map(OccupancyMap(grid, meta).to_msg(), path.with_suffix(""))
     assert path.is_file()
+    if slam_map:
+        (path.parent / "slam_map.npz").write_bytes(b"")
     return path
 
 
@@ -92,7 +98,8 @@ def test_seed_replaced_per_run_and_passed_as_visnav_run_car_map() -> None:
     assert runs[1].run_kwargs() == {
         "seed": 12,
         "slam": False,
-        "launch_args": {"map": "/m/12/map.yaml", "use_map": "true"},
+        # without SLAM the saved map is AMCL's: no slam_map
+        "launch_args": {"map": "/m/12/map.yaml", "use_map": "true", "map_localization": "slam"},
     }
     assert RunSpec.from_json(json.loads(json.dumps(runs[1].to_json()))) == runs[1]
     fixed = expand_runs("car", [0, 1], {"map": ["/m/map.yaml"]}, sweep_id=0)
@@ -126,6 +133,26 @@ def test_missing_map_names_the_seed_and_path(tmp_path: Path) -> None:
     )
     assert message.endswith("(and 1 more runs' maps, seeds 4)")
     check_run_inputs(runs[:1])  # seed 1's map is there
+
+
+def test_a_missing_slam_map_is_refused_unless_amcl_localises(tmp_path: Path) -> None:
+    _write_map(tmp_path / "3" / "map.yaml", slam_map=False)
+    template = str(tmp_path / "{seed}" / "map.yaml")
+    runs = expand_runs("car", [3], {"map": [template]}, sweep_id=0)
+    with pytest.raises(SweepError) as info:
+        check_run_inputs(runs)
+    message = str(info.value)
+    assert message.startswith(f"--set map: seed 3: {tmp_path / '3' / 'map.yaml'}: no SLAM map ")
+    assert message.endswith("(--map-localization amcl)")
+    amcl = {"map": [template], "map_localization": ["amcl"]}
+    (run,) = expand_runs("car", [3], amcl, sweep_id=0)
+    check_run_inputs([run])
+    assert run.run_kwargs()["launch_args"]["map_localization"] == "amcl"
+    check_run_inputs(expand_runs("car", [3], {"map": [template], "slam": [False]}, sweep_id=0))
+    with pytest.raises(SweepError, match=r"--set map_localization: only with --set map"):
+        expand_runs("car", [3], {"map_localization": ["amcl"]}, sweep_id=0)
+    with pytest.raises(SweepError, match=r"map_localization"):
+        parse_sets(["map_localization=gps"])
 
 
 def test_broken_map_is_refused_with_map_servers_reason(tmp_path: Path) -> None:

@@ -7,6 +7,7 @@ import sys
 
 from visnav.outpaths import check_output_dir
 from visnav.scenarios.runner import SCENARIOS, format_summary, run_scenario
+from visnav.scenarios.saved_map import MAP_LOCALIZATIONS, saved_map_launch_args
 
 __all__ = ["add_arguments"]
 
@@ -46,7 +47,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--map",
         default=None,
         metavar="MAP.yaml",
-        help="car: localise in this map (map_server + AMCL: launch args use_map, map)",
+        help="car: localise in this saved map (its map.yaml is the static layer; launch args "
+        "use_map, map)",
+    )
+    parser.add_argument(
+        "--map-localization",
+        choices=MAP_LOCALIZATIONS,
+        default="slam",
+        help="car with --map: slam = visual SLAM in localisation mode in the slam_map.npz "
+        "beside MAP.yaml (default), amcl = AMCL on the depth scan (docs/navigation.md)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=cmd_run)
@@ -58,7 +67,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         check_output_dir(args.out, what="the run's output directory (--out)")
     from visnav.graph.context import Context
 
-    launch_args = {"map": args.map, "use_map": "true"} if args.map else {}
+    launch_args = (
+        saved_map_launch_args(args.map, args.map_localization, slam=not args.no_slam, check=True)
+        if args.map
+        else {}
+    )
     context = Context(args.domain) if getattr(args, "domain", None) is not None else None
     summary = run_scenario(
         args.scenario,

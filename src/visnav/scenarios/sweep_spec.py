@@ -30,6 +30,7 @@ from typing import Any
 
 from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.runner import SCENARIOS
+from visnav.scenarios.saved_map import MAP_LOCALIZATIONS, saved_map_launch_args
 
 __all__ = [
     "DOMAIN_BASE",
@@ -80,6 +81,13 @@ def _parse_bool(text: str) -> bool:
     raise ValueError(text)
 
 
+def _parse_map_localization(text: str) -> str:
+    value = text.strip()
+    if value not in MAP_LOCALIZATIONS:
+        raise ValueError(text)
+    return value
+
+
 def _parse_seconds(text: str) -> float:
     value = float(text)
     if not (math.isfinite(value) and value > 0):
@@ -125,13 +133,21 @@ RUN_OPTIONS: dict[str, RunOption] = {
         "launch_args",
         "path of a map.yaml, {seed}: the run's seed",
         _parse_map,
-        "car: localise in this saved map (map_server + amcl: visnav run car --map)",
+        "car: localise in this saved map (visnav run car --map)",
+    ),
+    "map_localization": RunOption(
+        "launch_args",
+        " or ".join(MAP_LOCALIZATIONS),
+        _parse_map_localization,
+        "car with map: what localises in it (visnav run car --map-localization)",
     ),
 }
 """The options of ``visnav run`` a sweep may vary (``--set KEY=...``).
 
-``map`` is ``visnav run car --map``: the launch args ``map`` (the run's path, its
-``{seed}`` replaced) and ``use_map: true``; the others are :func:`run_scenario` keywords.
+``map`` is ``visnav run car --map`` (with ``map_localization``, its
+``--map-localization``): the launch args of
+:func:`~visnav.scenarios.saved_map.saved_map_launch_args` for the run's path, its ``{seed}``
+replaced; the others are :func:`run_scenario` keywords.
 """
 _MAP_SCENARIOS = ("car",)
 """The built-in scenarios that can localise in a saved map (launch arg ``use_map``)."""
@@ -342,7 +358,11 @@ class RunSpec:
             if file and key not in _FILE_RUNNER_KEYS:
                 launch[key] = _format_value(value)
             elif key == "map":  # as visnav run car --map
-                launch.update(map=str(value), use_map="true")
+                loc = str(self.options.get("map_localization", "slam"))
+                slam = bool(self.options.get("slam", True))
+                launch.update(saved_map_launch_args(str(value), loc, slam=slam))
+            elif key == "map_localization":
+                continue  # read with map
             else:
                 kwargs[RUN_OPTIONS[key].keyword] = value
         if launch:
@@ -405,6 +425,9 @@ def expand_runs(
             f"for {', '.join(_MAP_SCENARIOS)} (visnav run car --map)"
         )
         raise SweepError(msg)
+    if "map_localization" in sets and "map" not in sets and not is_scenario_file(scenario):
+        msg = "--set map_localization: only with --set map (what localises in the saved map)"
+        raise SweepError(msg)
     keys = list(sets)
     settings = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*sets.values())]
     if not seeds or not settings:
@@ -424,6 +447,9 @@ def expand_runs(
 
 def check_run_inputs(runs: Sequence[RunSpec]) -> None:
     """Check the input files of ``runs`` before any runs: each run's ``map`` loads.
+
+    With SLAM localising (``map_localization`` slam, the default) the ``slam_map.npz``
+    beside it must exist too (it is read, and its errors reported, by the SLAM node).
 
     Each map is read as map_server reads it (YAML and image), so a missing or broken map
     stops the sweep before anything runs, as other bad input does.
@@ -449,6 +475,10 @@ def check_run_inputs(runs: Sequence[RunSpec]) -> None:
             continue
         try:
             load_map(path)
+            loc = str(spec.options.get("map_localization", "slam"))
+            saved_map_launch_args(path, loc, slam=bool(spec.options.get("slam", True)), check=True)
+        except ScenarioError as exc:  # no SLAM map beside the map
+            problems.append((spec, str(exc)))
         except VisnavError as exc:
             problems.append((spec, f"bad map: {exc}"))
     if problems:

@@ -90,6 +90,26 @@ class LoopCloser:
         order = np.lexsort((ids, -scores))[:n]
         return [int(ids[i]) for i in order]
 
+    def index_map(self) -> None:
+        """Describe the keyframes already in the map (a loaded one) for place recognition.
+
+        Without a vocabulary one is trained first, on ``vocabulary_keyframes`` keyframes
+        spread evenly over the map (in mapping it is the first ones: there are no others).
+        """
+        kfs = [k for k in self.map.keyframes if not k.bad]
+        if not kfs:
+            return
+        if self.vocabulary is None:
+            step = max(1, len(kfs) // max(1, self.config.vocabulary_keyframes))
+            docs = [k.frame.descriptors for k in kfs[::step]]
+            cfg = self.config
+            self.vocabulary = Vocabulary.train(docs, k=cfg.vocabulary_size, seed=cfg.seed)
+            self.database = BowDatabase(self.vocabulary)
+        assert self.database is not None  # made with the vocabulary
+        for k in kfs:
+            k.bow = self.vocabulary.transform(k.frame.descriptors)
+            self.database.add(k.id, k.bow)
+
     def add_keyframe(self, kf: Keyframe) -> bool:
         """Describe a new keyframe, look for a loop and close it; return whether one closed."""
         cfg = self.config

@@ -47,6 +47,7 @@ __all__ = [
     "save_slam_map",
     "save_system_map",
     "check_database_path",
+    "check_saved_map_path",
     "summarize_slam_map",
     "write_ply",
 ]
@@ -558,6 +559,27 @@ def check_database_path(path: str) -> str:
         text = (
             f"database_path {path!r}: expected a file name ending in .npz (visnav saves its "
             "SLAM map as numpy arrays, not rtabmap's SQLite .db); fix: e.g. slam_map.npz"
+        )
+        raise SlamMapFileError(text)
+    return path
+
+
+def check_saved_map_path(path: str) -> str:
+    """Check ``database_path`` when the SLAM node localises (``localization`` true).
+
+    Raises:
+        SlamMapFileError: an empty path or no such file.
+    """
+    if not path:
+        text = (
+            "localization is true but database_path is empty: set it to the slam_map.npz a "
+            "mapping run wrote (beside its map.yaml), or set localization false to map"
+        )
+        raise SlamMapFileError(text)
+    if not Path(path).is_file():
+        text = (
+            f"database_path {path!r}: no such file to localise in; expected the slam_map.npz "
+            "a mapping run wrote (visnav run car --out DIR writes DIR/slam_map.npz)"
         )
         raise SlamMapFileError(text)
     return path

@@ -53,7 +53,11 @@ that pose of the map at the first frame (default: the map starts equal to ``odom
 ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``) carries the counters every
 ``diagnostic_period`` s (1.0; 0: only on loss and recovery). ``database_path`` (rtabmap's
 name; '' = none): when the node is destroyed the map is written there (.npz) with its points
-beside it (.ply; :mod:`visnav.slam.map_file`); a killed node saves nothing.
+beside it (.ply; :mod:`visnav.slam.map_file`); a killed node saves nothing. With
+``localization`` (rtabmap's localization mode) the map at ``database_path`` is read
+instead, SLAM localises in it (:mod:`visnav.slam.localization_mode`; ``initial_pose.*``
+is where it looks first, then bag-of-words relocalisation) and nothing is written; until
+the first frame is found in it, ``map -> odom`` is not published.
 
 Where the system runs (:mod:`visnav.slam.worker`): ``worker`` ``inline`` (the node's
 thread) or ``process`` (a process of its own, another core). ``result_latency`` (s of
@@ -98,7 +102,7 @@ from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse, level_pose
-from visnav.slam.map_file import check_database_path
+from visnav.slam.map_file import check_database_path, check_saved_map_path
 from visnav.slam.node_params import SlamParams
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
@@ -194,6 +198,9 @@ class SlamNode(Node):
         self._min_period_ns = round(1e9 / rate) if rate > 0 else 0
         self.odometry_prior = prm.odometry_prior
         self.database_path = check_database_path(prm.database_path)
+        self.localization = prm.localization
+        if self.localization:
+            check_saved_map_path(self.database_path)
         self._last_stamp: int | None = None
         self.skipped = 0
         self.config = SlamConfig(
@@ -443,6 +450,7 @@ class SlamNode(Node):
                     self.config,
                     vocabulary_path=self.vocabulary_path,
                     initial_pose=start @ self._t_base_cam,
+                    map_path=self.database_path if self.localization else "",
                 )
             except VisnavError as exc:
                 self._worker_failure = f"the SLAM worker could not start: {exc}; fix and restart"
@@ -628,7 +636,8 @@ class SlamNode(Node):
     def destroy_node(self) -> None:
         """Save the map (``database_path``), stop the worker (its process), remove the node."""
         worker = getattr(self, "worker", None)  # None when __init__ refused a parameter
-        level, text = save_at_shutdown(worker, getattr(self, "database_path", ""))
+        saving = not getattr(self, "localization", False)  # localisation: the map is read
+        level, text = save_at_shutdown(worker, getattr(self, "database_path", "") if saving else "")
         self.database_path = ""  # saved once, even if destroyed again
         if text:  # info (written), warning (no frame) or error (not written)
             getattr(self.get_logger(), level)(text)

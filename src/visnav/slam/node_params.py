@@ -68,3 +68,6 @@ class SlamParams:
     database_path: str = param(
         "", description="the SLAM map .npz (+ .ply) written at shutdown ('': none; rtabmap's name)"
     )
+    localization: bool = param(
+        False, description="localise in the map at database_path (read, not written; rtabmap's)"
+    )

@@ -20,6 +20,7 @@ and bundle adjustment move the whole trajectory (:meth:`SlamSystem.trajectory`).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import cv2
@@ -42,7 +43,9 @@ from visnav.slam.geometry import (
 )
 from visnav.slam.inputs import STAGES, Stopwatch, prepare_inputs, virtual_baseline
 from visnav.slam.keyframe_rule import need_keyframe
+from visnav.slam.localization_mode import SavedMapAnchor
 from visnav.slam.loop_closing import LoopCloser
+from visnav.slam.map_file import SavedSlamMap
 from visnav.slam.mapping import create_points, cull_recent_points, fuse_points
 from visnav.slam.matching import search_by_projection
 from visnav.slam.monocular import (
@@ -73,7 +76,11 @@ class SlamSystem(SystemOutputs):
         camera: intrinsics of the rectified images.
         config: parameters (:class:`SlamConfig`).
         vocabulary: a pre-trained vocabulary (default: trained on the first keyframes).
-        initial_pose: ``T_map_camera`` of the first frame (default identity).
+        initial_pose: ``T_map_camera`` of the first frame (default identity); with
+            ``saved_map``, where to look for the camera in it first.
+        saved_map: localise in this map of an earlier run instead of starting a new one
+            (:mod:`visnav.slam.localization_mode`): its keyframes are held, loop closing is
+            off, and tracking starts lost until the first frame is relocalised in it.
     """
 
     def __init__(
@@ -83,6 +90,7 @@ class SlamSystem(SystemOutputs):
         *,
         vocabulary: Vocabulary | None = None,
         initial_pose: FloatArray | None = None,
+        saved_map: SavedSlamMap | None = None,
     ) -> None:
         self.config = config or SlamConfig()
         cfg = self.config
@@ -105,17 +113,23 @@ class SlamSystem(SystemOutputs):
             max_depth=cfg.max_depth,
         )
         self.map = SlamMap()
+        self.saved = None if saved_map is None else SavedMapAnchor(saved_map)
+        if self.saved is not None:
+            self.map = self.saved.map
         self.dense = DenseTracker.from_config(self.camera, cfg) if cfg.sensor == "rgbd" else None
         self._pose_info: FloatArray | None = None
         self._dense_ref = -1
         self.loop_closer = LoopCloser(
             self.map,
             self.camera,
-            cfg,
+            cfg if self.saved is None else replace(cfg, loop_closure=False),
             vocabulary=vocabulary,
             global_ba=self.global_bundle_adjustment,
         )
-        self.state: TrackingState = "uninitialized"
+        self.state: TrackingState = "uninitialized" if self.saved is None else "lost"
+        self.localized = False
+        if self.saved is not None:
+            self.loop_closer.index_map()  # relocalisation's place memory of the saved map
         self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
         self.n_frames = 0
         self.n_lost = 0
@@ -225,7 +239,7 @@ class SlamSystem(SystemOutputs):
             if not ok:
                 sw.start("matching")
                 self._prior = None  # a relocalised pose owes nothing to the odometry
-                ok = self._relocalize(frame)
+                ok = self._relocalize(frame, sw)
                 reloc = ok and self.state == "lost"
                 if ok:
                     self.n_relocalized += int(reloc)
@@ -253,6 +267,12 @@ class SlamSystem(SystemOutputs):
                     warnings.append(
                         f"frame {stamp_ns}: tracking lost ({inliers} inliers); relocalising"
                     )
+                elif not self.localized:  # localisation mode, not found in the saved map yet
+                    warnings.append(
+                        f"frame {stamp_ns}: not localised in the saved map after "
+                        f"{self._lost_frames + 1} frames ({inliers} inliers); is the camera "
+                        "where the map was built?"
+                    )
                 self.state = "lost"
                 self.n_lost += 1
                 self._lost_frames += 1
@@ -274,6 +294,7 @@ class SlamSystem(SystemOutputs):
                     self.n_reinitialized += 1
         t_wc: FloatArray | None = None
         if self.state == "ok" and frame.t_cw is not None:
+            self.localized = True
             self._record(frame)
             t_wc = inverse(frame.t_cw)
             self._lost_frames = 0
@@ -399,20 +420,12 @@ class SlamSystem(SystemOutputs):
 
     def _track_from(self, frame: Frame, pred: FloatArray, sw: Stopwatch) -> bool:
         pts = self._local_points[~self.map.bad[self._local_points]]
-        r = self.config.search_radius
-        mi, ki = search_by_projection(
-            frame, self.camera, pred, self.map.positions[pts], self.map.descriptors[pts], radius=r
-        )
-        if len(mi) < 20:
-            mi, ki = search_by_projection(
-                frame,
-                self.camera,
-                pred,
-                self.map.positions[pts],
-                self.map.descriptors[pts],
-                radius=2 * r,
-            )
-        if len(mi) < 20:
+        xyz, desc, r = self.map.positions[pts], self.map.descriptors[pts], self.config.search_radius
+        for radius in (r, 2 * r):  # a wider window when the prediction is off
+            mi, ki = search_by_projection(frame, self.camera, pred, xyz, desc, radius=radius)
+            if len(mi) >= 20:
+                break
+        else:
             return False
         sw.start("pose")
         obs = self._observations(frame, ki, pts[mi])
@@ -440,10 +453,16 @@ class SlamSystem(SystemOutputs):
         self._apply(frame, loc)
         return True
 
-    def _relocalize(self, frame: Frame) -> bool:
+    def _relocalize(self, frame: Frame, sw: Stopwatch) -> bool:
         kfs = [kf.id for kf in self.map.keyframes if not kf.bad]
         if not kfs:
             return False
+        if self.saved is not None and not self.localized:  # first, where we were told
+            near = self.saved.nearby(self.initial_pose)
+            self._local_points = self.map.local_points(near)
+            if near and self._track_from(frame, inverse(self.initial_pose), sw):
+                self._velocity = None
+                return True
         candidates = self.loop_closer.place_candidates(frame.descriptors, 5) or kfs[::-1][:5]
         for k in candidates:
             group = [k, *self.map.keyframes[k].best_covisibles(5)]
@@ -476,6 +495,8 @@ class SlamSystem(SystemOutputs):
                 if n >= 0 and n not in chosen:
                     chosen.add(n)
                     local.append(n)
+        if self.saved is not None and frame.t_cw is not None:  # the saved map in view
+            local += [k for k in self.saved.nearby(inverse(frame.t_cw)) if k not in chosen]
         self._ref_kf = ranked[0][0]
         self._local_kfs = local
         self._local_points = self.map.local_points(local)
@@ -591,6 +612,8 @@ class SlamSystem(SystemOutputs):
         if cfg.local_ba and len(m.keyframes) >= 2:
             window = [kf.id, *kf.best_covisibles(cfg.local_window - 1)]
             window = self._anchor.window(m, kf, window)
+            if self.saved is not None:  # the saved keyframes are held
+                window = self.saved.new_only(window)
             if self._mono is not None:
                 window = mono_ba_window(window)
             self._note_ba(
@@ -641,6 +664,9 @@ class SlamSystem(SystemOutputs):
             None with fewer than two keyframes.
         """
         ids = [kf.id for kf in self.map.keyframes if not kf.bad]
+        fixed: list[int] | None = ids[:2] if self._mono is not None else ids[:1]  # mono: scale
+        if self.saved is not None:  # the new keyframes; the saved ones seeing them are held
+            ids, fixed = self.saved.new_only(ids), None
         if len(ids) < 2:
             return None
         result = bundle_adjustment(
@@ -648,7 +674,7 @@ class SlamSystem(SystemOutputs):
             self.camera,
             ids,
             inv_sigma2_levels=self.extractor.inv_level_sigma2,
-            fixed_ids=ids[:2] if self._mono is not None else [ids[0]],  # mono: hold the scale
+            fixed_ids=fixed,
             iterations=iterations or self.config.global_ba_iterations,
             min_observations=2,
         )

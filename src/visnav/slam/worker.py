@@ -48,7 +48,8 @@ from numpy.typing import NDArray
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamError
-from visnav.slam.map_file import MapFiles, save_system_map
+from visnav.slam.localization_mode import check_map_camera
+from visnav.slam.map_file import MapFiles, load_slam_map, save_system_map
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
 from visnav.slam.vocabulary import Vocabulary
@@ -127,9 +128,16 @@ class _Core:
         config: SlamConfig,
         vocabulary_path: str,
         initial_pose: FloatArray,
+        map_path: str = "",
     ) -> None:
         vocab = Vocabulary.load(vocabulary_path) if vocabulary_path else None
-        self.system = SlamSystem(camera, config, vocabulary=vocab, initial_pose=initial_pose)
+        saved = None
+        if map_path:  # localisation mode
+            saved = load_slam_map(map_path)
+            check_map_camera(saved.camera, camera, map_path)
+        self.system = SlamSystem(
+            camera, config, vocabulary=vocab, initial_pose=initial_pose, saved_map=saved
+        )
         self.cpu_s = 0.0
         self.stage_cpu: dict[str, float] = {}
 
@@ -192,6 +200,7 @@ class SlamWorker:
         config: the system's configuration.
         vocabulary_path: a saved vocabulary (``""``: trained from the first keyframes).
         initial_pose: ``T_map_camera`` of the first frame.
+        map_path: a saved SLAM map to localise in (``""``: map anew).
     """
 
     def __init__(
@@ -201,9 +210,11 @@ class SlamWorker:
         *,
         vocabulary_path: str = "",
         initial_pose: FloatArray | None = None,
+        map_path: str = "",
     ) -> None:
         self.camera, self.config = camera, config
         self.vocabulary_path = vocabulary_path
+        self.map_path = map_path
         self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
         self.in_flight = 0
 
@@ -267,9 +278,16 @@ class InlineWorker(SlamWorker):
         *,
         vocabulary_path: str = "",
         initial_pose: FloatArray | None = None,
+        map_path: str = "",
     ) -> None:
-        super().__init__(camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose)
-        self.core = _Core(camera, config, vocabulary_path, self.initial_pose)
+        super().__init__(
+            camera,
+            config,
+            vocabulary_path=vocabulary_path,
+            initial_pose=initial_pose,
+            map_path=map_path,
+        )
+        self.core = _Core(camera, config, vocabulary_path, self.initial_pose, map_path)
         self._done: deque[WorkerResult] = deque()
 
     @property
@@ -406,8 +424,15 @@ class ProcessWorker(SlamWorker):
         *,
         vocabulary_path: str = "",
         initial_pose: FloatArray | None = None,
+        map_path: str = "",
     ) -> None:
-        super().__init__(camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose)
+        super().__init__(
+            camera,
+            config,
+            vocabulary_path=vocabulary_path,
+            initial_pose=initial_pose,
+            map_path=map_path,
+        )
         self._slots: FrameSlots | None = None
         self._frame_slots: deque[int | None] = deque()  # slot of each frame in flight
         pixels = camera.width * camera.height
@@ -447,7 +472,8 @@ class ProcessWorker(SlamWorker):
         self._closed = False
         self._received: deque[WorkerResult] = deque()
         try:
-            self._conn.send(("init", camera, config, vocabulary_path, self.initial_pose))
+            init = ("init", camera, config, vocabulary_path, self.initial_pose, map_path)
+            self._conn.send(init)
             self._answer("start", timeout_s=_START_TIMEOUT_S)
         except (SlamWorkerError, OSError):
             self.close()  # a child that refused to start is not left running
@@ -547,19 +573,23 @@ def make_worker(
     *,
     vocabulary_path: str = "",
     initial_pose: FloatArray | None = None,
+    map_path: str = "",
 ) -> SlamWorker:
     """A worker by its ``worker`` parameter value (``inline`` or ``process``).
+
+    ``map_path``: a saved SLAM map to localise in (``""``: map anew).
 
     Raises:
         SlamWorkerError: an unknown kind.
     """
-    if kind == "inline":
-        return InlineWorker(
-            camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose
-        )
-    if kind == "process":
-        return ProcessWorker(
-            camera, config, vocabulary_path=vocabulary_path, initial_pose=initial_pose
+    if kind in WORKERS:
+        cls = InlineWorker if kind == "inline" else ProcessWorker
+        return cls(
+            camera,
+            config,
+            vocabulary_path=vocabulary_path,
+            initial_pose=initial_pose,
+            map_path=map_path,
         )
     text = f"worker {kind!r}: expected one of {', '.join(WORKERS)} (inline: in the node's thread)"
     raise SlamWorkerError(text)
