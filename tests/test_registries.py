@@ -80,6 +80,7 @@ ADDED = {
         # issue 14 item 4 (session 8): the SLAM map file written at shutdown (rtabmap's name)
         "database_path",
         "localization",  # session 9: SLAM in localisation mode in database_path
+        "global_ba_after_loop",  # session 9: SlamConfig's, for the car's real time
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
     "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},

@@ -16,12 +16,14 @@ import numpy as np
 import pytest
 
 from visnav.graph import Context, Node
+from visnav.msgs.serde import get_message_class
 from visnav.slam import SlamConfig, SlamSystem
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.errors import SlamError, SlamInputError
 from visnav.slam.localization_mode import SavedMapAnchor, check_map_camera
 from visnav.slam.map_file import SlamMapFileError, load_slam_map, save_system_map
 from visnav.slam.node import SlamNode
+from visnav.slam.node_diagnostics import LOCALIZE_FRAMES
 from visnav.slam.worker import InlineWorker
 
 from .conftest import SMALL, Sequence, feed_rgbd, make_sequence
@@ -83,7 +85,7 @@ def test_localises_where_told_and_holds_the_saved_map(
         assert np.array_equal(kf.t_cw, before[kf.id])
         assert kf.odom_pose is None  # the earlier run's odometry frame is dropped
     assert slam.loops == []  # loop closing is off: the saved frame is the frame
-    assert slam.loop_closer.vocabulary is not None  # trained on the saved keyframes
+    assert slam.loop_closer.vocabulary is None  # found where told: no place memory needed
 
 
 def test_a_wrong_first_guess_is_mended_by_place_recognition(
@@ -98,6 +100,10 @@ def test_a_wrong_first_guess_is_mended_by_place_recognition(
     assert results[0].relocalized
     assert _position_errors(results, seq, frames).max() < 0.02
     assert slam.n_relocalized == 1
+    vocabulary, database = slam.loop_closer.vocabulary, slam.loop_closer.database
+    assert vocabulary is not None  # trained on the saved keyframes when first needed
+    assert database is not None
+    assert len(database) == len(slam.map.keyframes)  # saved and new, each once
 
 
 def test_far_outside_the_saved_map_it_never_localises(saved_path: Path) -> None:
@@ -183,3 +189,41 @@ def test_node_refuses_localization_without_a_map(tmp_path: Path) -> None:
             parameter_overrides={"localization": True, "database_path": missing},
         )
     assert missing in str(info.value)
+
+
+def test_node_far_outside_says_it_cannot_localise(
+    saved_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    far = make_sequence(150, turns=1.15)
+    part = Sequence(far.camera, far.poses[75:], far.stamps_ns[75:], far.rgb[75:], far.depth[75:])
+    overrides = {
+        "odom_frame": "",
+        "base_frame": "camera_optical",
+        "n_features": 400,
+        "database_path": str(saved_path),
+        "localization": True,
+    }
+    caplog.set_level(logging.INFO)
+    with Context(transport="local") as ctx:
+        slam = SlamNode(context=ctx, parameter_overrides=overrides)
+        statuses: list = []
+        probe = Node("probe", context=ctx)
+        probe.create_subscription(
+            get_message_class("diagnostic_msgs/msg/DiagnosticArray"),
+            "/diagnostics",
+            lambda m: statuses.extend(m.status),
+            10,
+        )
+        feed_rgbd(Node("feeder", context=ctx), part, LOCALIZE_FRAMES + 5)
+        ctx.spin_some()
+        assert slam.t_map_odom is None  # nothing to publish map -> odom from
+        assert not slam.tracking
+        slam.destroy_node()
+    errors = [r.getMessage() for r in caplog.records if r.levelno == logging.ERROR]
+    assert len(errors) == 1  # said once
+    assert errors[0].startswith(
+        f"[/slam] cannot localise in the saved SLAM map {saved_path}: no fix"
+    )
+    last = statuses[-1]
+    assert last.level == 2
+    assert last.message.startswith("not localised in the saved map (4")

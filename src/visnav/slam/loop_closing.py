@@ -91,7 +91,7 @@ class LoopCloser:
         return [int(ids[i]) for i in order]
 
     def index_map(self) -> None:
-        """Describe the keyframes already in the map (a loaded one) for place recognition.
+        """Describe the keyframes of the map not described yet (a loaded map's) by words.
 
         Without a vocabulary one is trained first, on ``vocabulary_keyframes`` keyframes
         spread evenly over the map (in mapping it is the first ones: there are no others).
@@ -107,8 +107,9 @@ class LoopCloser:
             self.database = BowDatabase(self.vocabulary)
         assert self.database is not None  # made with the vocabulary
         for k in kfs:
-            k.bow = self.vocabulary.transform(k.frame.descriptors)
-            self.database.add(k.id, k.bow)
+            if k.bow is None:  # not yet in the database
+                k.bow = self.vocabulary.transform(k.frame.descriptors)
+                self.database.add(k.id, k.bow)
 
     def add_keyframe(self, kf: Keyframe) -> bool:
         """Describe a new keyframe, look for a loop and close it; return whether one closed."""

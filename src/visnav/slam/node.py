@@ -103,6 +103,7 @@ from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamInputError
 from visnav.slam.geometry import inverse, level_pose
 from visnav.slam.map_file import check_database_path, check_saved_map_path
+from visnav.slam.node_diagnostics import LOCALIZE_FRAMES, SlamDiagnostics
 from visnav.slam.node_params import SlamParams
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
@@ -207,6 +208,7 @@ class SlamNode(Node):
             n_features=prm.n_features,
             seed=prm.seed,
             loop_closure=prm.loop_closure,
+            global_ba_after_loop=prm.global_ba_after_loop,
             local_ba=prm.local_ba,
             icp_refinement=prm.icp_refinement,
             depth_noise=prm.depth_noise,
@@ -236,9 +238,10 @@ class SlamNode(Node):
         self.force_3dof = prm.force_3dof
         self._level_z: float | None = None  # the base's height in the map at the first frame
         self.tracking = False
+        self.unlocalized_frames = 0  # localisation mode: frames before the first fix
         self.cpu_s = 0.0  # the worker's CPU time on frames (its process or this thread)
         self._stats = SlamStats()
-        self._diag = _SlamDiagnostics(self)
+        self._diag = SlamDiagnostics(self)
         diag_period = prm.diagnostic_period
         if diag_period > 0:  # 0: only on loss and recovery
             self.create_timer(diag_period, self._publish_diagnostics)
@@ -496,6 +499,8 @@ class SlamNode(Node):
         for w in result.warnings:
             self.get_logger().warning(w, throttle_duration_sec=_LOG_PERIOD_S)
         if result.t_wc is None:
+            if self.localization and self.t_map_odom is None:
+                self._not_localized(stamp)
             if self.tracking:
                 self.tracking = False
                 self.get_logger().warning(
@@ -530,6 +535,18 @@ class SlamNode(Node):
             self._path_sent_ns = stamp
             self._path_pub.publish(Path(header=header, poses=list(self._path)))
         self._publish_tf()
+
+    def _not_localized(self, stamp: int) -> None:
+        """Localisation mode before the first fix: say once that it cannot localise."""
+        self.unlocalized_frames += 1
+        if self.unlocalized_frames == LOCALIZE_FRAMES:
+            self.get_logger().error(
+                f"cannot localise in the saved SLAM map {self.database_path}: no fix in "
+                f"{LOCALIZE_FRAMES} frames (to {stamp * 1e-9:.3f} s), so {self.map_frame} -> "
+                f"{self.odom_frame or self.base_frame} is not published and the robot is not "
+                "driven; start it where the map was built (initial_pose.*) or map again"
+            )
+            self._publish_diagnostics()
 
     def _skip(self, stamp: int) -> bool:
         """True when ``max_frame_rate`` leaves this frame out (1 ms tolerance for jitter)."""
@@ -644,55 +661,3 @@ class SlamNode(Node):
         if worker is not None:
             worker.close()
         super().destroy_node()
-
-
-class _SlamDiagnostics:
-    """``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``, as diagnostic_updater).
-
-    One status named after the node, every ``diagnostic_period`` s and when tracking is
-    lost or regained: level OK while tracking, WARN while lost (message says so), and the
-    counters ``frames``, ``tracking_lost``, ``relocalized``, ``reinitialized``,
-    ``keyframes``, ``loop_closures``, ``skipped``, ``dropped``, ``ba_runs``,
-    ``ba_failures``, ``cpu_s`` and ``cpu_s.<stage>``. rtabmap reports these on its own
-    ``rtabmap/info`` message type; a standard type lets any ROS tool read them.
-    """
-
-    def __init__(self, node: SlamNode) -> None:
-        self._node = node
-        self._status = get_message_class("diagnostic_msgs/msg/DiagnosticStatus")
-        self._kv = get_message_class("diagnostic_msgs/msg/KeyValue")
-        array = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
-        self._pub = node.create_publisher(array, "/diagnostics", 100)
-
-    def publish(self, s: SlamStats, *, tracking: bool, started: bool) -> None:
-        node = self._node
-        values = {
-            "frames": s.frames,
-            "tracking_lost": s.lost,
-            "relocalized": s.relocalized,
-            "reinitialized": s.reinitialized,
-            "keyframes": s.keyframes,
-            "loop_closures": s.loops,
-            "skipped": node.skipped,
-            "dropped": node.dropped,
-            "odometry_fallbacks": node.odometry_fallbacks,
-            "ba_runs": s.ba_runs,
-            "ba_failures": s.ba_failures,
-            "cpu_s": round(s.cpu_s, 4),
-            **{f"cpu_s.{k}": round(v, 4) for k, v in sorted(s.stage_cpu_s.items())},
-        }
-        if not started:
-            level, text = 0, "waiting for the first frame"
-        elif tracking:
-            level, text = 0, "tracking"
-        else:
-            level, text = 1, "tracking lost: relocalising (map -> odom not refreshed)"
-        status = self._status(
-            level=level,
-            name=node.get_fully_qualified_name(),
-            message=text,
-            hardware_id="",
-            values=[self._kv(key=k, value=str(v)) for k, v in values.items()],
-        )
-        header = Header(stamp=ns_to_time(node.get_clock().now_ns()), frame_id="")
-        self._pub.publish(self._pub.msg_type(header=header, status=[status]))

@@ -59,6 +59,9 @@ class SlamParams:
     n_features: int = param(1000, description="ORB features per frame")
     seed: int = param(0, description="random seed")
     loop_closure: bool = param(True, description="detect and close loops")
+    global_ba_after_loop: bool = param(
+        SlamConfig.global_ba_after_loop, description="bundle-adjust the whole map after a loop"
+    )
     local_ba: bool = param(True, description="local bundle adjustment")
     icp_refinement: bool = param(True, description="dense ICP refinement of each pose")
     depth_noise: float = param(SlamConfig.depth_noise, description="sigma_z / z^2 of the depth")

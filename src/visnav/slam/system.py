@@ -128,8 +128,6 @@ class SlamSystem(SystemOutputs):
         )
         self.state: TrackingState = "uninitialized" if self.saved is None else "lost"
         self.localized = False
-        if self.saved is not None:
-            self.loop_closer.index_map()  # relocalisation's place memory of the saved map
         self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
         self.n_frames = 0
         self.n_lost = 0
@@ -463,6 +461,8 @@ class SlamSystem(SystemOutputs):
             if near and self._track_from(frame, inverse(self.initial_pose), sw):
                 self._velocity = None
                 return True
+        if self.saved is not None:  # the saved map's place memory, built when first needed
+            self.loop_closer.index_map()
         candidates = self.loop_closer.place_candidates(frame.descriptors, 5) or kfs[::-1][:5]
         for k in candidates:
             group = [k, *self.map.keyframes[k].best_covisibles(5)]
