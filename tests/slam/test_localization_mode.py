@@ -165,6 +165,7 @@ def test_node_localises_and_does_not_write_the_map(
         "n_features": 400,
         "database_path": str(path),
         "localization": True,
+        "global_ba_after_loop": False,  # passed on to the system's configuration
     }
     caplog.set_level(logging.INFO)
     with Context(transport="local") as ctx:
@@ -172,6 +173,7 @@ def test_node_localises_and_does_not_write_the_map(
         feed_rgbd(Node("feeder", context=ctx), short_sequence, 8)
         assert slam.system is not None
         assert slam.system.saved is not None
+        assert slam.system.config.global_ba_after_loop is False
         assert slam.tracking
         assert slam.system.localized
         slam.destroy_node()
