@@ -76,7 +76,8 @@ def drive(amcl_world: SimpleNamespace) -> list[tuple[float, NDArray[np.float64]]
 
 def car_tuning() -> dict[str, object]:
     """The amcl filter parameters of car.launch.yaml's ``--map`` group."""
-    launch = load_launch(CAR_LAUNCH, {"seed": "0", "out": "", "use_map": "true", "map": "/m.yaml"})
+    args = {"seed": "0", "out": "", "use_map": "true", "map": "/m.yaml", "map_localization": "amcl"}
+    launch = load_launch(CAR_LAUNCH, args)
     (node,) = [n for n in launch.nodes if n.executable == "amcl"]
     names = {f.name for f in dataclasses.fields(AmclParams)} - {"seed"}
     return {k: v for k, v in node.params.items() if k in names}

@@ -85,7 +85,8 @@ def _topic(node: NodeSpec, name: str) -> str:
 
 @pytest.mark.parametrize("slam", ["true", "false"])
 def test_car_launch_gives_amcl_a_one_row_scan(slam: str) -> None:
-    nodes = _nodes({"use_map": "true", "map": "/x/map.yaml", "slam": slam})
+    args = {"use_map": "true", "map": "/x/map.yaml", "map_localization": "amcl", "slam": slam}
+    nodes = _nodes(args)
     (amcl,) = [n for n in nodes if n.executable == "amcl"]
     wanted = expand_topic_name(str(amcl.params["scan_topic"]), amcl.name, amcl.namespace)
     scans = {_topic(n, "scan"): n for n in nodes if n.executable == "depthimage_to_laserscan"}
