@@ -22,7 +22,8 @@ class SlamDiagnostics:
     """``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``, as diagnostic_updater).
 
     One status named after the node, every ``diagnostic_period`` s and when tracking is
-    lost or regained: level OK while tracking, WARN while lost (message says so), and the
+    lost or regained: level OK while tracking, WARN while lost (message says so; in
+    localisation mode before the first fix WARN, ERROR after ``LOCALIZE_FRAMES``), and the
     counters ``frames``, ``tracking_lost``, ``relocalized``, ``reinitialized``,
     ``keyframes``, ``loop_closures``, ``skipped``, ``dropped``, ``ba_runs``,
     ``ba_failures``, ``cpu_s`` and ``cpu_s.<stage>``. rtabmap reports these on its own
