@@ -217,6 +217,11 @@ class SlamWorker:
         self.map_path = map_path
         self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
         self.in_flight = 0
+        self._start()
+
+    def _start(self) -> None:
+        """Build the system where it runs (the end of the constructor)."""
+        raise NotImplementedError
 
     def submit(
         self,
@@ -271,23 +276,10 @@ class SlamWorker:
 class InlineWorker(SlamWorker):
     """Tracks each frame in the caller's thread when it is submitted."""
 
-    def __init__(
-        self,
-        camera: CameraIntrinsics,
-        config: SlamConfig,
-        *,
-        vocabulary_path: str = "",
-        initial_pose: FloatArray | None = None,
-        map_path: str = "",
-    ) -> None:
-        super().__init__(
-            camera,
-            config,
-            vocabulary_path=vocabulary_path,
-            initial_pose=initial_pose,
-            map_path=map_path,
+    def _start(self) -> None:
+        self.core = _Core(
+            self.camera, self.config, self.vocabulary_path, self.initial_pose, self.map_path
         )
-        self.core = _Core(camera, config, vocabulary_path, self.initial_pose, map_path)
         self._done: deque[WorkerResult] = deque()
 
     @property
@@ -417,25 +409,10 @@ class ProcessWorker(SlamWorker):
         SlamWorkerError: the process cannot be started or dies.
     """
 
-    def __init__(
-        self,
-        camera: CameraIntrinsics,
-        config: SlamConfig,
-        *,
-        vocabulary_path: str = "",
-        initial_pose: FloatArray | None = None,
-        map_path: str = "",
-    ) -> None:
-        super().__init__(
-            camera,
-            config,
-            vocabulary_path=vocabulary_path,
-            initial_pose=initial_pose,
-            map_path=map_path,
-        )
+    def _start(self) -> None:
         self._slots: FrameSlots | None = None
         self._frame_slots: deque[int | None] = deque()  # slot of each frame in flight
-        pixels = camera.width * camera.height
+        pixels = self.camera.width * self.camera.height
         with contextlib.suppress(OSError, AttributeError):  # no memfd: frames are pickled
             self._slots = FrameSlots(pixels * 3 + _ALIGN + pixels * 4, _SLOTS)
         slot_fd = -1 if self._slots is None else self._slots.fd
@@ -472,7 +449,14 @@ class ProcessWorker(SlamWorker):
         self._closed = False
         self._received: deque[WorkerResult] = deque()
         try:
-            init = ("init", camera, config, vocabulary_path, self.initial_pose, map_path)
+            init = (
+                "init",
+                self.camera,
+                self.config,
+                self.vocabulary_path,
+                self.initial_pose,
+                self.map_path,
+            )
             self._conn.send(init)
             self._answer("start", timeout_s=_START_TIMEOUT_S)
         except (SlamWorkerError, OSError):
