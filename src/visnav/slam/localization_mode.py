@@ -79,7 +79,6 @@ class SavedMapAnchor:
 
     def __init__(self, saved: SavedSlamMap) -> None:
         self.map: SlamMap = saved.map
-        self.camera = saved.camera
         self.n_saved = len(saved.map.keyframes)
         for kf in self.map.keyframes:
             kf.odom_pose = None  # the earlier run's odometry frame

@@ -127,7 +127,6 @@ class SlamSystem(SystemOutputs):
             global_ba=self.global_bundle_adjustment,
         )
         self.state: TrackingState = "uninitialized" if self.saved is None else "lost"
-        self.localized = False
         self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
         self.n_frames = 0
         self.n_lost = 0
@@ -292,7 +291,6 @@ class SlamSystem(SystemOutputs):
                     self.n_reinitialized += 1
         t_wc: FloatArray | None = None
         if self.state == "ok" and frame.t_cw is not None:
-            self.localized = True
             self._record(frame)
             t_wc = inverse(frame.t_cw)
             self._lost_frames = 0

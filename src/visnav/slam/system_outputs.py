@@ -36,6 +36,11 @@ class SystemOutputs:
     map: SlamMap
     _records: list[FrameRecord]
 
+    @property
+    def localized(self) -> bool:
+        """Whether any frame has a pose yet (in localisation mode: found in the saved map)."""
+        return bool(self._records)
+
     def trajectory(self) -> Trajectory:
         """Camera poses of all tracked frames in the map frame (loop corrections applied)."""
         if not self._records:
