@@ -49,7 +49,9 @@ class SlamConfig:
     optimisation with it, an edge is off by more than this many standard
     deviations; 0: no check), ``loop_consistency``, ``loop_exclude_recent``,
     ``global_ba_after_loop`` (as ORB-SLAM2: without it a loop pose a centimetre or two
-    off stays in the merged map); ``final_global_ba`` runs on :meth:`finish`.
+    off stays in the merged map), solved inline or, with ``global_ba_delay`` frames > 0,
+    in a helper process and merged that many frames after the loop
+    (:mod:`visnav.slam.global_ba`); ``final_global_ba`` runs on :meth:`finish`.
 
     Odometry (optional ``odom_pose`` per frame): predicts the motion instead of
     the constant-velocity model, and after ``reinit_after_lost`` lost frames
@@ -120,6 +122,7 @@ class SlamConfig:
     global_ba_after_loop: bool = True
     final_global_ba: bool = True
     global_ba_iterations: int = 15
+    global_ba_delay: int = 0
     seed: int = 0
     dense_stride: int = 8
     icp_refinement: bool = True
@@ -148,6 +151,10 @@ class SlamConfig:
                 default = getattr(SlamConfig, name)
                 text = f"{name}{flag} is {value!r}: expected a positive integer (default {default})"
                 raise SlamInputError(text)
+        delay = self.global_ba_delay
+        if not isinstance(delay, int) or isinstance(delay, bool) or delay < 0:
+            text = f"global_ba_delay is {delay!r}: expected frames >= 0 (0: inline, the default)"
+            raise SlamInputError(text)
         if not self.scale_factor > 1.0:
             text = f"scale_factor is {self.scale_factor!r}: expected a number > 1 (ORB: 1.2)"
             raise SlamInputError(text)

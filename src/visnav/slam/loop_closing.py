@@ -57,6 +57,8 @@ class LoopCloser:
         config: the SLAM parameters (loop and vocabulary settings).
         vocabulary: a pre-trained vocabulary (default: trained on the fly).
         global_ba: called after a correction when ``config.global_ba_after_loop``.
+        before_correction: called when a verified loop is about to correct the map (a
+            background adjustment still pending is merged first, as it was due earlier).
     """
 
     def __init__(
@@ -67,6 +69,7 @@ class LoopCloser:
         *,
         vocabulary: Vocabulary | None = None,
         global_ba: Callable[[], object] | None = None,
+        before_correction: Callable[[], object] | None = None,
     ) -> None:
         self.map = slam_map
         self.camera = camera
@@ -81,6 +84,7 @@ class LoopCloser:
         self.last_loop_kf = -(10**9)
         self._contradictions: dict[tuple[int, int], set[int]] = {}
         self._global_ba = global_ba
+        self._before_correction = before_correction
 
     def place_candidates(self, descriptors: DescArray, n: int) -> list[int]:
         """Keyframes most similar to an image by bag of words (empty before the vocabulary)."""
@@ -189,6 +193,8 @@ class LoopCloser:
 
     def _close(self, kf: Keyframe, loop_id: int, loc: Localization) -> bool:
         m = self.map
+        if self._before_correction is not None:
+            self._before_correction()
         loop_kf = m.keyframes[loop_id]
         t_ij = loop_kf.t_cw @ inverse(loc.t_cw)
         loop = LoopConstraint(loop_id, kf.id, t_ij, loc.covariance)

@@ -66,6 +66,9 @@ result_latency`` exactly, waiting for it if the worker is not done: a fixed dela
 "whatever is finished", so a run gives the same trajectory whatever the wall-clock speed
 or the worker (a one-frame latency is what the process worker needs to overlap with a
 lock-step simulator). With 0 the result is applied in the frame's callback.
+``global_ba_delay`` (frames, default 0) moves the global bundle adjustment after a loop
+off the tracking path, into a helper process, merged that many frames later
+(:mod:`visnav.slam.background_ba`; deterministic too).
 
 Inputs that cannot be used (a camera_info that changes or disagrees with the
 image, an implausible depth scale) are logged (each kind at most once per 5 s, through
@@ -209,6 +212,7 @@ class SlamNode(Node):
             seed=prm.seed,
             loop_closure=prm.loop_closure,
             global_ba_after_loop=prm.global_ba_after_loop,
+            global_ba_delay=prm.global_ba_delay,
             local_ba=prm.local_ba,
             icp_refinement=prm.icp_refinement,
             depth_noise=prm.depth_noise,

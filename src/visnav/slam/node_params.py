@@ -62,6 +62,9 @@ class SlamParams:
     global_ba_after_loop: bool = param(
         SlamConfig.global_ba_after_loop, description="bundle-adjust the whole map after a loop"
     )
+    global_ba_delay: int = param(
+        0, description="frames after a loop its global BA (helper process) is merged; 0: inline"
+    )
     local_ba: bool = param(True, description="local bundle adjustment")
     icp_refinement: bool = param(True, description="dense ICP refinement of each pose")
     depth_noise: float = param(SlamConfig.depth_noise, description="sigma_z / z^2 of the depth")

@@ -33,11 +33,17 @@ from visnav.slam.slam_map import SlamMap
 
 __all__ = [
     "MAX_DENSE_KEYFRAMES",
+    "BaProblem",
     "BaResult",
+    "BaSolution",
     "LoopConstraint",
     "apply_point_corrections",
+    "ba_problem",
     "bundle_adjustment",
+    "erase_outliers",
     "optimize_pose_graph",
+    "solve_ba",
+    "store_ba",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -161,6 +167,43 @@ def bundle_adjustment(
         Sizes, outliers removed and the error before/after; a solver failure is in
         ``error`` (the map is then unchanged).
     """
+    problem = ba_problem(
+        slam_map,
+        keyframe_ids,
+        fixed_ids=fixed_ids,
+        min_observations=min_observations,
+        odometry=odometry,
+    )
+    if isinstance(problem, BaResult):
+        return problem
+    solution = solve_ba(problem, cam, inv_sigma2_levels, iterations, max_dense_keyframes)
+    return store_ba(slam_map, cam, problem, solution)
+
+
+@dataclass(frozen=True)
+class BaSolution:
+    """A solver's output for a :class:`BaProblem` (``error``: why it failed)."""
+
+    t_cw: FloatArray
+    positions: FloatArray
+    error_before: float
+    error_after: float
+    error: str = ""
+
+
+def ba_problem(
+    slam_map: SlamMap,
+    keyframe_ids: list[int],
+    *,
+    fixed_ids: list[int] | None = None,
+    min_observations: int = 1,
+    odometry: Sequence[OdometryEdge] = (),
+) -> BaProblem | BaResult:
+    """Gather a bundle adjustment's variables and observations from the map (a snapshot).
+
+    Arguments as :func:`bundle_adjustment`'s. Returns the problem, or an empty
+    :class:`BaResult` when there is nothing to optimise.
+    """
     local = sorted({k for k in keyframe_ids if not slam_map.keyframes[k].bad})
     points = slam_map.local_points(local)
     obs_list: list[tuple[int, int, int]] = []  # (kf, kp, point)
@@ -180,22 +223,47 @@ def bundle_adjustment(
         fixed.add(min(involved))
     if not obs_list:
         return BaResult(len(local), len(fixed), 0, 0, 0, 0.0, 0.0)
-    problem = _Problem(slam_map, sorted(involved), fixed, obs_list, odometry)
-    sizes = (len(local), len(fixed), len(problem.points), len(obs_list))
+    return BaProblem(slam_map, sorted(involved), fixed, obs_list, odometry, n_local=len(local))
+
+
+def solve_ba(
+    problem: BaProblem,
+    cam: CameraIntrinsics,
+    inv_sigma2_levels: FloatArray,
+    iterations: int,
+    max_dense_keyframes: int | None = None,
+) -> BaSolution:
+    """Solve a problem (compiled up to ``max_dense_keyframes`` free poses, else gtsam).
+
+    A pure function of its arguments (no map): it can run in another process.
+    """
     limit = MAX_DENSE_KEYFRAMES if max_dense_keyframes is None else max_dense_keyframes
-    if len(involved - fixed) <= limit:
-        before, after, error = _solve_compiled(problem, cam, inv_sigma2_levels, iterations)
-    else:
-        before, after, error = _solve_gtsam(problem, cam, inv_sigma2_levels, iterations)
-    if error:
-        return BaResult(*sizes, 0, before, before, error)
-    outliers = _erase_outliers(slam_map, cam, obs_list)
+    if int((~problem.fixed).sum()) <= limit:
+        return _solve_compiled(problem, cam, inv_sigma2_levels, iterations)
+    return _solve_gtsam(problem, cam, inv_sigma2_levels, iterations)
+
+
+def store_ba(
+    slam_map: SlamMap, cam: CameraIntrinsics, problem: BaProblem, solution: BaSolution
+) -> BaResult:
+    """Write a solution into the map, erase the outlier observations, report."""
+    sizes = problem.sizes()
+    if solution.error:
+        e = solution.error_before
+        return BaResult(*sizes, 0, e, e, solution.error)
+    problem.store(slam_map, solution.t_cw, solution.positions)
+    outliers = erase_outliers(slam_map, cam, problem.obs_list)
     slam_map.update_point_normals(problem.points)
-    return BaResult(*sizes, outliers, before, after)
+    return BaResult(*sizes, outliers, solution.error_before, solution.error_after)
 
 
-class _Problem:
-    """A bundle adjustment's variables and observations as arrays (map indices kept)."""
+class BaProblem:
+    """A bundle adjustment's variables and observations as arrays (map indices kept).
+
+    A snapshot: the poses and point positions are copied when it is made, and it keeps
+    no reference to the map, so it can be pickled and solved in another process while
+    the map goes on changing (:mod:`visnav.slam.background_ba`).
+    """
 
     def __init__(
         self,
@@ -204,10 +272,12 @@ class _Problem:
         fixed: set[int],
         obs_list: list[tuple[int, int, int]],
         odometry: Sequence[OdometryEdge] = (),
+        *,
+        n_local: int = 0,
     ) -> None:
-        self.map = slam_map
         self.keyframes = np.asarray(keyframes, dtype=np.int64)
         self.fixed = np.asarray([k in fixed for k in keyframes], dtype=bool)
+        self.n_local = n_local
         index = {k: n for n, k in enumerate(keyframes)}
         self.odometry = [
             (index[e.i], index[e.j], e)
@@ -215,6 +285,7 @@ class _Problem:
             if e.i in index and e.j in index and not (e.i in fixed and e.j in fixed)
         ]
         arr = np.asarray(obs_list, dtype=np.int64)
+        self.obs_list = arr
         self.points, self.obs_pt = np.unique(arr[:, 2], return_inverse=True)
         self.obs_kf = np.searchsorted(self.keyframes, arr[:, 0])
         n = len(arr)
@@ -229,21 +300,23 @@ class _Problem:
             self.u_right[rows] = f.u_right[kp]
             self.octave[rows] = f.octave[kp]
         self.stereo = np.isfinite(self.u_right)
+        self.t_cw = np.stack([slam_map.keyframes[k].t_cw for k in keyframes])
+        self.positions = slam_map.positions[self.points].astype(np.float64)
 
-    def t_cw(self) -> FloatArray:
-        """(K, 4, 4) world -> camera poses of the keyframes."""
-        return np.stack([self.map.keyframes[k].t_cw for k in self.keyframes.tolist()])
+    def sizes(self) -> tuple[int, int, int, int]:
+        """Free keyframes asked for, held keyframes, points, observations."""
+        return self.n_local, int(self.fixed.sum()), len(self.points), len(self.obs_list)
 
-    def store(self, t_cw: FloatArray, positions: FloatArray) -> None:
+    def store(self, slam_map: SlamMap, t_cw: FloatArray, positions: FloatArray) -> None:
         """Write optimised free poses and every point back into the map."""
         for i in np.flatnonzero(~self.fixed).tolist():
-            self.map.keyframes[int(self.keyframes[i])].t_cw = orthonormalize(t_cw[i])
-        self.map.positions[self.points] = positions
+            slam_map.keyframes[int(self.keyframes[i])].t_cw = orthonormalize(t_cw[i])
+        slam_map.positions[self.points] = positions
 
 
 def _solve_compiled(
-    problem: _Problem, cam: CameraIntrinsics, inv_sigma2_levels: FloatArray, iterations: int
-) -> tuple[float, float, str]:
+    problem: BaProblem, cam: CameraIntrinsics, inv_sigma2_levels: FloatArray, iterations: int
+) -> BaSolution:
     pr = problem
     meas = np.column_stack([pr.uv, np.where(pr.stereo, pr.u_right, 0.0)])
     info = np.asarray(inv_sigma2_levels, dtype=np.float64)[pr.octave]
@@ -256,8 +329,8 @@ def _solve_compiled(
     )
     edge_w = np.array([e.sigmas**-2 for _, _, e in pr.odometry]).reshape(n_edges, 6)
     t_cw, positions, before, after = levenberg_marquardt_odometry(
-        pr.t_cw(),
-        pr.map.positions[pr.points].astype(np.float64),
+        pr.t_cw,
+        pr.positions,
         pr.obs_kf,
         pr.obs_pt,
         meas,
@@ -274,14 +347,14 @@ def _solve_compiled(
         edge_w,
     )
     if not (np.isfinite(after) and np.isfinite(t_cw).all() and np.isfinite(positions).all()):
-        return before, before, f"bundle adjustment of {len(pr.keyframes)} keyframes diverged"
-    pr.store(t_cw, positions)
-    return before, after, ""  # ba_cost: half the robust sum of squares, as gtsam's error
+        text = f"bundle adjustment of {len(pr.keyframes)} keyframes diverged"
+        return BaSolution(pr.t_cw, pr.positions, before, before, text)
+    return BaSolution(t_cw, positions, before, after)  # half the robust sum of squares
 
 
 def _solve_gtsam(
-    problem: _Problem, cam: CameraIntrinsics, inv_sigma2_levels: FloatArray, iterations: int
-) -> tuple[float, float, str]:
+    problem: BaProblem, cam: CameraIntrinsics, inv_sigma2_levels: FloatArray, iterations: int
+) -> BaSolution:
     gtsam = _gtsam()
     pr = problem
     graph = gtsam.NonlinearFactorGraph()
@@ -289,12 +362,12 @@ def _solve_gtsam(
     models = _Models(gtsam, inv_sigma2_levels)
     k_mono = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
     k_stereo = gtsam.Cal3_S2Stereo(cam.fx, cam.fy, 0.0, cam.cx, cam.cy, cam.baseline)
-    for i, t_cw in enumerate(pr.t_cw()):
+    for i, t_cw in enumerate(pr.t_cw):
         pose = gtsam.Pose3(inverse(t_cw))
         values.insert(i, pose)
         if pr.fixed[i]:
             graph.add(_hold(gtsam, i, pose))
-    for j, p in enumerate(pr.map.positions[pr.points]):
+    for j, p in enumerate(pr.positions):
         values.insert(_POINT_KEY + j, gtsam.Point3(*p))
     for o in range(len(pr.obs_kf)):
         k, key = int(pr.obs_kf[o]), _POINT_KEY + int(pr.obs_pt[o])
@@ -317,25 +390,29 @@ def _solve_gtsam(
     try:
         result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
     except RuntimeError as exc:
-        return (
-            before,
-            before,
-            f"bundle adjustment of {len(pr.keyframes)} keyframes failed in gtsam: {exc}",
-        )
+        text = f"bundle adjustment of {len(pr.keyframes)} keyframes failed in gtsam: {exc}"
+        return BaSolution(pr.t_cw, pr.positions, before, before, text)
     after = float(graph.error(result))
     t_cw = np.stack([inverse(result.atPose3(i).matrix()) for i in range(len(pr.keyframes))])
     positions = np.stack([result.atPoint3(_POINT_KEY + j) for j in range(len(pr.points))])
-    pr.store(t_cw, positions)
-    return before, after, ""
+    return BaSolution(t_cw, positions, before, after)
 
 
-def _erase_outliers(
-    slam_map: SlamMap, cam: CameraIntrinsics, obs_list: list[tuple[int, int, int]]
-) -> int:
-    arr = np.asarray(obs_list, dtype=np.int64)
+def erase_outliers(slam_map: SlamMap, cam: CameraIntrinsics, obs: IntArray) -> int:
+    """Erase the observations (rows ``kf, keypoint, point``) that the map's poses reject.
+
+    Rows no longer in the map (a background adjustment's snapshot is older) are skipped.
+
+    Returns:
+        How many were erased.
+    """
+    arr = np.asarray(obs, dtype=np.int64).reshape(-1, 3)
+    arr = arr[np.argsort(arr[:, 0], kind="stable")]  # one slice per keyframe, rows in order
+    ks, starts = np.unique(arr[:, 0], return_index=True)
+    ends = [*starts[1:].tolist(), len(arr)]
     outliers = 0
-    for k in np.unique(arr[:, 0]).tolist():
-        rows = arr[arr[:, 0] == k]
+    for k, a, b in zip(ks.tolist(), starts.tolist(), ends, strict=True):
+        rows = arr[a:b]
         kf = slam_map.keyframes[k]
         f = kf.frame
         kp = rows[:, 1]
@@ -350,9 +427,10 @@ def _erase_outliers(
         e2 += np.where(stereo, (ur - np.where(stereo, f.u_right[kp], 0.0)) ** 2, 0.0)
         chi2 = e2 * f.inv_sigma2[kp]
         bad = (chi2 > np.where(stereo, CHI2_STEREO, CHI2_MONO)) | (z <= 0)
-        for p in rows[bad, 2].tolist():
-            slam_map.erase_observation(int(p), k)
-            outliers += 1
+        for kp_p, p in rows[bad, 1:].tolist():
+            if slam_map.observations[p].get(k) == kp_p:  # still as it was (a snapshot's row)
+                slam_map.erase_observation(p, k)
+                outliers += 1
     return outliers
 
 

@@ -41,6 +41,7 @@ from visnav.slam.geometry import (
     pose_information,
     project,
 )
+from visnav.slam.global_ba import GlobalAdjuster
 from visnav.slam.inputs import STAGES, Stopwatch, prepare_inputs, virtual_baseline
 from visnav.slam.keyframe_rule import need_keyframe
 from visnav.slam.localization_mode import SavedMapAnchor
@@ -55,7 +56,7 @@ from visnav.slam.monocular import (
     triangulate_new_points,
 )
 from visnav.slam.odometry_prior import odometry_edges, odometry_prior
-from visnav.slam.optimizer import BaResult, LoopConstraint, bundle_adjustment
+from visnav.slam.optimizer import BaResult, bundle_adjustment
 from visnav.slam.place_recognition import Localization, localize_in_map
 from visnav.slam.restart import RestartAnchor, follow_depth, predict_from_odometry
 from visnav.slam.slam_map import Keyframe, SlamMap
@@ -119,12 +120,22 @@ class SlamSystem(SystemOutputs):
         self.dense = DenseTracker.from_config(self.camera, cfg) if cfg.sensor == "rgbd" else None
         self._pose_info: FloatArray | None = None
         self._dense_ref = -1
+        self.global_ba = GlobalAdjuster(
+            self.map,
+            self.camera,
+            cfg,
+            self.extractor.inv_level_sigma2,
+            mono=cfg.sensor == "mono",
+            saved=self.saved,
+            note=self._note_ba,
+        )
         self.loop_closer = LoopCloser(
             self.map,
             self.camera,
             cfg if self.saved is None else replace(cfg, loop_closure=False),
             vocabulary=vocabulary,
-            global_ba=self.global_bundle_adjustment,
+            global_ba=lambda: self.global_ba.after_loop(self.n_frames),
+            before_correction=self.global_ba.merge_pending,
         )
         self.state: TrackingState = "uninitialized" if self.saved is None else "lost"
         self.initial_pose = np.eye(4) if initial_pose is None else np.asarray(initial_pose, float)
@@ -164,8 +175,6 @@ class SlamSystem(SystemOutputs):
                 max_depth=cfg.max_depth,
             )
 
-    # ------------------------------------------------------------------ input
-
     # --------------------------------------------------------------- tracking
 
     def track(
@@ -196,6 +205,9 @@ class SlamSystem(SystemOutputs):
                 the depth scale is implausible.
         """
         sw = Stopwatch()
+        sw.start("loop")
+        if self.global_ba.merge_due(self.n_frames + 1):  # a loop's background adjustment
+            self._follow_map()  # the last frame's pose, as its keyframe moved
         sw.start("features")
         mono, scale = self._mono is not None, self.config.depth_scale
         gray, colour, depth_m, warnings = prepare_inputs(
@@ -636,16 +648,6 @@ class SlamSystem(SystemOutputs):
         frame.t_cw = kf.t_cw.copy()  # bundle adjustment / loop correction moved the keyframe
         return closed
 
-    @property
-    def loops(self) -> list[LoopConstraint]:
-        """Loop constraints closed so far."""
-        return self.loop_closer.loops
-
-    @property
-    def vocabulary(self) -> Vocabulary | None:
-        """The bag-of-words vocabulary (None until trained)."""
-        return self.loop_closer.vocabulary
-
     def _note_ba(self, result: BaResult) -> None:
         """Count a bundle adjustment; a solver failure becomes a warning of this frame."""
         self.ba_runs += 1
@@ -655,29 +657,21 @@ class SlamSystem(SystemOutputs):
             self._ba_warnings.append(f"{result.error} (the map keeps its previous poses)")
 
     def global_bundle_adjustment(self, iterations: int | None = None) -> BaResult | None:
-        """Optimise every keyframe pose (but the first) and map point together.
+        """Optimise every keyframe pose (but the first) and map point together, now.
 
         Returns:
             The adjustment's result (also counted in ``ba_runs`` / ``ba_failures``), or
             None with fewer than two keyframes.
         """
-        ids = [kf.id for kf in self.map.keyframes if not kf.bad]
-        fixed: list[int] | None = ids[:2] if self._mono is not None else ids[:1]  # mono: scale
-        if self.saved is not None:  # the new keyframes; the saved ones seeing them are held
-            ids, fixed = self.saved.new_only(ids), None
-        if len(ids) < 2:
-            return None
-        result = bundle_adjustment(
-            self.map,
-            self.camera,
-            ids,
-            inv_sigma2_levels=self.extractor.inv_level_sigma2,
-            fixed_ids=fixed,
-            iterations=iterations or self.config.global_ba_iterations,
-            min_observations=2,
-        )
-        self._note_ba(result)
-        return result
+        return self.global_ba.run(iterations)
+
+    def _follow_map(self) -> None:
+        if self._last is not None and self._last_rec is not None:
+            self._last.t_cw = (
+                self._last_rec.t_c_ref @ self.map.keyframes[self._last_rec.ref_kf].t_cw
+            )
+            if self._odom_pose_last is not None:
+                self._odom_last = self._odom_pose_last @ self._last.t_cw
 
     # ----------------------------------------------------------------- output
 
@@ -693,6 +687,7 @@ class SlamSystem(SystemOutputs):
         self._last_rec = rec
 
     def finish(self) -> None:
-        """End of a run: the final global bundle adjustment if configured."""
+        """End of a run: the final global bundle adjustment if configured; helper stopped."""
         if self.config.final_global_ba:
             self.global_bundle_adjustment()
+        self.global_ba.close()

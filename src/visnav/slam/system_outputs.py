@@ -13,8 +13,11 @@ from numpy.typing import NDArray
 
 from visnav.slam.clouds import voxel_average
 from visnav.slam.geometry import inverse
+from visnav.slam.loop_closing import LoopCloser
+from visnav.slam.optimizer import LoopConstraint
 from visnav.slam.slam_map import SlamMap
 from visnav.slam.trajectory import Trajectory
+from visnav.slam.vocabulary import Vocabulary
 
 __all__ = ["FrameRecord", "SystemOutputs"]
 
@@ -34,7 +37,18 @@ class SystemOutputs:
     """Read-only views of a system's map and tracked frames (a base of ``SlamSystem``)."""
 
     map: SlamMap
+    loop_closer: LoopCloser
     _records: list[FrameRecord]
+
+    @property
+    def loops(self) -> list[LoopConstraint]:
+        """Loop constraints closed so far."""
+        return self.loop_closer.loops
+
+    @property
+    def vocabulary(self) -> Vocabulary | None:
+        """The bag-of-words vocabulary (None until trained)."""
+        return self.loop_closer.vocabulary
 
     @property
     def localized(self) -> bool:

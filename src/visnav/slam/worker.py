@@ -177,6 +177,10 @@ class _Core:
             stage_cpu_s=dict(self.stage_cpu),
         )
 
+    def close(self) -> None:
+        """Stop the system's helper process (a background global BA's), if any."""
+        self.system.global_ba.close()
+
     def call(self, name: str, args: tuple[Any, ...]) -> Any:
         if name == "trajectory":
             return self.system.trajectory()
@@ -310,6 +314,10 @@ class InlineWorker(SlamWorker):
         self.in_flight -= 1
         return self._done.popleft()
 
+    def close(self) -> None:
+        """Stop the system's helper process, if any (idempotent)."""
+        self.core.close()
+
     def _call(self, name: str, *args: Any) -> Any:
         return self.core.call(name, args)
 
@@ -378,6 +386,8 @@ def _serve(conn: Connection, slots: FrameSlots | None = None) -> None:
         try:
             msg: tuple[Any, ...] = conn.recv()
         except (EOFError, OSError):  # the parent is gone
+            if core is not None:
+                core.close()
             return
         kind = msg[0]
         try:
@@ -396,6 +406,8 @@ def _serve(conn: Connection, slots: FrameSlots | None = None) -> None:
             elif kind == "call":
                 conn.send(("ok", core.call(msg[1], msg[2])))
             else:  # "close"
+                if core is not None:
+                    core.close()
                 conn.send(("ok", None))
                 return
         except Exception as exc:  # noqa: BLE001 - every failure goes back to the node
