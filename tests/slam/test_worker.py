@@ -81,24 +81,3 @@ def test_a_refused_frame_comes_back_as_an_error_and_the_worker_goes_on(
 def test_unknown_worker_kind_is_refused(short_sequence: Sequence) -> None:
     with pytest.raises(SlamWorkerError, match=r"worker 'thread'.*inline, process"):
         make_worker("thread", short_sequence.camera, SlamConfig())
-
-
-def test_frames_read_ahead_keep_their_order_and_their_errors(short_sequence: Sequence) -> None:
-    """Features are extracted ahead on another thread; results and errors stay in order."""
-    seq = short_sequence
-    proc = ProcessWorker(seq.camera, SlamConfig(n_features=400))
-    try:
-        proc.submit(seq.rgb[0], seq.depth[0], int(seq.stamps_ns[0]))
-        proc.submit(seq.rgb[1], seq.depth[1][:40], int(seq.stamps_ns[1]))  # depth cut short
-        proc.submit(seq.rgb[2], seq.depth[2], int(seq.stamps_ns[2]))
-        first, bad, third = proc.next_result(), proc.next_result(), proc.next_result()
-        assert first.result is not None
-        assert first.result.stamp_ns == int(seq.stamps_ns[0])
-        assert bad.result is None
-        assert "depth" in bad.error
-        assert third.result is not None
-        assert third.result.stamp_ns == int(seq.stamps_ns[2])
-        assert third.result.state == "ok"
-        assert third.cpu_s > 0  # the extraction thread's CPU is counted with the frame
-    finally:
-        proc.close()

@@ -1,9 +1,4 @@
-"""Per-frame input checks, feature extraction and stage timing of :class:`~visnav.slam.SlamSystem`.
-
-:func:`prepare_frame` (checks, conversion, ORB features) reads nothing of the map, so a
-worker can run it for the next frame on another thread while the system tracks the
-current one (:mod:`visnav.slam.worker`); OpenCV's detector and descriptor release the GIL.
-"""
+"""Per-frame input checks and stage timing of :class:`~visnav.slam.SlamSystem`."""
 
 from __future__ import annotations
 
@@ -17,16 +12,8 @@ from numpy.typing import NDArray
 
 from visnav.slam.camera import CameraIntrinsics, check_depth_scale, depth_to_metres
 from visnav.slam.errors import SlamInputError
-from visnav.slam.features import Frame, OrbExtractor
 
-__all__ = [
-    "STAGES",
-    "PreparedFrame",
-    "Stopwatch",
-    "prepare_frame",
-    "prepare_inputs",
-    "virtual_baseline",
-]
+__all__ = ["STAGES", "Stopwatch", "prepare_inputs", "virtual_baseline"]
 
 STAGES = ("features", "matching", "pose", "mapping", "loop")
 """The timed stages of one frame (:attr:`TrackResult.timings` keys)."""
@@ -114,46 +101,3 @@ def prepare_inputs(
     depth_m = depth_to_metres(depth, depth_scale=depth_scale)
     warnings = check_depth_scale(depth_m[::4, ::4], source="depth")
     return gray, colour, depth_m, warnings
-
-
-@dataclass(frozen=True)
-class PreparedFrame:
-    """One frame checked, converted and described (:func:`prepare_frame`).
-
-    Attributes:
-        gray: the image in grey levels.
-        colour: the RGB image (None for a mono image).
-        depth_m: depth in metres (NaN where none).
-        warnings: problems noticed with the inputs.
-        frame: its ORB keypoints with depth.
-        cpu_s: CPU time the preparation took (its thread's).
-    """
-
-    gray: NDArray[np.uint8]
-    colour: NDArray[np.uint8] | None
-    depth_m: NDArray[np.float32]
-    warnings: tuple[str, ...]
-    frame: Frame
-    cpu_s: float
-
-
-def prepare_frame(
-    extractor: OrbExtractor,
-    cam: CameraIntrinsics,
-    image: NDArray[Any],
-    depth: NDArray[Any] | None,
-    stamp_ns: int,
-    depth_scale: float | None,
-    mono: bool,
-) -> PreparedFrame:
-    """Check and convert one frame (:func:`prepare_inputs`), then extract its features.
-
-    Raises:
-        SlamInputError: as :func:`prepare_inputs`.
-    """
-    t0 = time.thread_time()
-    gray, colour, depth_m, warnings = prepare_inputs(
-        image, depth, cam, depth_scale=depth_scale, mono=mono
-    )
-    frame = extractor.extract(gray, None if mono else depth_m, cam, int(stamp_ns))
-    return PreparedFrame(gray, colour, depth_m, tuple(warnings), frame, time.thread_time() - t0)

@@ -42,7 +42,7 @@ from visnav.slam.geometry import (
     project,
 )
 from visnav.slam.global_ba import GlobalAdjuster
-from visnav.slam.inputs import STAGES, PreparedFrame, Stopwatch, prepare_frame, virtual_baseline
+from visnav.slam.inputs import STAGES, Stopwatch, prepare_inputs, virtual_baseline
 from visnav.slam.keyframe_rule import need_keyframe
 from visnav.slam.localization_mode import SavedMapAnchor
 from visnav.slam.loop_closing import LoopCloser
@@ -184,7 +184,6 @@ class SlamSystem(SystemOutputs):
         stamp_ns: int,
         *,
         odom_pose: FloatArray | None = None,
-        prepared: PreparedFrame | None = None,
     ) -> TrackResult:
         """Process one synchronised RGB-D frame (or one image with ``sensor="mono"``).
 
@@ -197,7 +196,6 @@ class SlamSystem(SystemOutputs):
             odom_pose: optional ``T_odom_camera`` from wheel (or other) odometry at
                 ``stamp_ns``: predicts the motion and lets tracking restart after a
                 loss that relocalisation cannot recover.
-            prepared: this frame's :meth:`prepare` (made ahead, e.g. on another thread).
 
         Returns:
             The frame's pose and what happened.
@@ -211,10 +209,12 @@ class SlamSystem(SystemOutputs):
         if self.global_ba.merge_due(self.n_frames + 1):  # a loop's background adjustment
             self._follow_map()  # the last frame's pose, as its keyframe moved
         sw.start("features")
-        prep = prepared or self.prepare(image, depth, stamp_ns)
-        colour, depth_m, warnings, frame = prep.colour, prep.depth_m, [*prep.warnings], prep.frame
-        sw.cpu["features"] += prep.cpu_s if prepared is not None else 0.0  # another thread's
+        mono, scale = self._mono is not None, self.config.depth_scale
+        gray, colour, depth_m, warnings = prepare_inputs(
+            image, depth, self.camera, depth_scale=scale, mono=mono
+        )
         cv2.setRNGSeed(int(self.config.seed) + self.n_frames)
+        frame = self.extractor.extract(gray, None if mono else depth_m, self.camera, int(stamp_ns))
         self.n_frames += 1
         kf_added = loop = reloc = reinit = False
         inliers = 0
@@ -326,13 +326,6 @@ class SlamSystem(SystemOutputs):
             timings=timings,
             cpu_timings=dict(sw.cpu),
         )
-
-    def prepare(
-        self, image: NDArray[Any], depth: NDArray[Any] | None, stamp_ns: int
-    ) -> PreparedFrame:
-        """Check, convert and describe a frame (reads nothing of the map: any thread)."""
-        scale, mono = self.config.depth_scale, self._mono is not None
-        return prepare_frame(self.extractor, self.camera, image, depth, stamp_ns, scale, mono)
 
     def _initialize(
         self, frame: Frame, depth_m: NDArray[np.float32], colour: NDArray[np.uint8] | None
@@ -664,10 +657,11 @@ class SlamSystem(SystemOutputs):
             self._ba_warnings.append(f"{result.error} (the map keeps its previous poses)")
 
     def global_bundle_adjustment(self, iterations: int | None = None) -> BaResult | None:
-        """Adjust every keyframe pose (but the first) and map point now (:class:`GlobalAdjuster`).
+        """Optimise every keyframe pose (but the first) and map point together, now.
 
         Returns:
-            The result (counted in ``ba_runs`` / ``ba_failures``); None below two keyframes.
+            The adjustment's result (also counted in ``ba_runs`` / ``ba_failures``), or
+            None with fewer than two keyframes.
         """
         return self.global_ba.run(iterations)
 

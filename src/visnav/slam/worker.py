@@ -20,29 +20,24 @@ Frames reach the process through shared memory (Linux ``memfd``, handed to the c
 start): :class:`FrameSlots` holds a few frame-sized slots; :meth:`ProcessWorker.submit`
 copies the image and depth into a free slot and sends only their layout (pickling a
 640x480 RGB-D frame through the socket cost ~4 ms of the caller's CPU, the copy ~0.3 ms);
-the worker copies them out when the request arrives, and a slot is free again once its
-frame's result is taken. A frame that does not fit, or finds no free slot, is pickled as
-before. The worker process runs OpenCV and BLAS single-threaded: its per-frame work is
-small matrices and one image, and on the two cores it shares with the simulation more
-threads only contend. One thread does help: the worker reads requests ahead and extracts
-each frame's ORB features on a thread of its own as soon as the frame arrives
-(:class:`_ReadAhead`), so a keyframe's mapping or a loop's correction no longer delays
-the features of the frames queued behind it (a fifth of the worker's CPU).
+the worker copies them out before tracking, and a slot is free again once its frame's
+result is taken. A frame that does not fit, or finds no free slot, is pickled as before.
+The worker process runs OpenCV and BLAS single-threaded: its per-frame work is small
+matrices and one image, and on the two cores it shares with the simulation more threads
+only contend.
 """
 
 from __future__ import annotations
 
 import contextlib
+import mmap
 import os
-import queue
 import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from collections import deque
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
@@ -53,8 +48,6 @@ from numpy.typing import NDArray
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamError
-from visnav.slam.frame_slots import ALIGN, FrameSlots
-from visnav.slam.inputs import PreparedFrame
 from visnav.slam.localization_mode import check_map_camera
 from visnav.slam.map_file import MapFiles, load_slam_map, save_system_map
 from visnav.slam.system import SlamSystem
@@ -81,7 +74,11 @@ WORKERS = ("inline", "process")
 
 _START_TIMEOUT_S = 120.0  # importing gtsam / OpenCV in a fresh process on a loaded machine
 _SLOTS = 6  # frames in shared memory at once (the car's 0.1 s latency keeps 2-3 in flight)
+_ALIGN = 64
 _SINGLE_THREADED = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+Layout = tuple[int, tuple[int, ...], str]
+"""Where an array lies in a slot: (byte offset in the buffer, shape, dtype string)."""
 
 
 class SlamWorkerError(SlamError, RuntimeError):
@@ -150,17 +147,15 @@ class _Core:
         depth: NDArray[Any] | None,
         stamp_ns: int,
         odom_pose: FloatArray | None,
-        prepared: Future[PreparedFrame] | None = None,
     ) -> WorkerResult:
         t0 = time.thread_time()
         try:
-            ahead = None if prepared is None else prepared.result()
-            res = self.system.track(image, depth, stamp_ns, odom_pose=odom_pose, prepared=ahead)
+            res = self.system.track(image, depth, stamp_ns, odom_pose=odom_pose)
         except SlamError as exc:
             cpu = time.thread_time() - t0
             self.cpu_s += cpu
             return WorkerResult(None, str(exc), cpu, self.stats())
-        cpu = time.thread_time() - t0 + (ahead.cpu_s if ahead is not None else 0.0)
+        cpu = time.thread_time() - t0
         self.cpu_s += cpu
         for k, v in res.cpu_timings.items():
             self.stage_cpu[k] = self.stage_cpu.get(k, 0.0) + v
@@ -327,96 +322,96 @@ class InlineWorker(SlamWorker):
         return self.core.call(name, args)
 
 
-class _ReadAhead:
-    """The worker process's inbox: requests read as they come, frames prepared on a thread.
+class FrameSlots:
+    """Frame-sized slots in one shared buffer (an anonymous ``memfd``; Linux only).
 
-    Each frame's :meth:`~visnav.slam.SlamSystem.prepare` (checks, ORB features) starts when
-    the frame arrives, so the next frames' features are extracted while the system still
-    tracks (or maps, or closes a loop on) an earlier one. They read nothing of the map, so
-    the results are those of extracting them in turn.
+    Args:
+        slot_bytes: bytes of one slot (image + depth, each aligned to 64 bytes).
+        count: number of slots.
+        fd: an existing buffer's file descriptor (the worker's side); None creates one.
+
+    Raises:
+        OSError: the buffer cannot be created or mapped.
     """
 
-    def __init__(self, conn: Connection, slots: FrameSlots | None) -> None:
-        self.conn, self.slots = conn, slots
-        self.core: _Core | None = None
-        self._built = threading.Event()
-        self._inbox: queue.SimpleQueue[tuple[Any, ...] | None] = queue.SimpleQueue()
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="visnav-slam-features")
-        self._reader = threading.Thread(target=self._read, name="visnav-slam-inbox", daemon=True)
-        self._reader.start()
+    def __init__(self, slot_bytes: int, count: int, *, fd: int | None = None) -> None:
+        self.slot_bytes = -(-int(slot_bytes) // _ALIGN) * _ALIGN
+        self.count = int(count)
+        size = self.slot_bytes * self.count
+        if fd is None:
+            fd = os.memfd_create("visnav-slam-frames", os.MFD_CLOEXEC)
+            try:
+                os.ftruncate(fd, size)
+            except OSError:
+                os.close(fd)
+                raise
+        self.fd = fd
+        self._map = mmap.mmap(fd, size)
+        self.free = list(range(self.count))
 
-    def built(self, core: _Core | None) -> None:
-        """The system exists (or could not be built): frames may be prepared."""
-        self.core = core
-        self._built.set()
+    def put(self, slot: int, arrays: tuple[NDArray[Any], ...]) -> tuple[Layout, ...] | None:
+        """Copy ``arrays`` into ``slot``; their layouts, or None when they do not fit."""
+        offset = slot * self.slot_bytes
+        end = offset + self.slot_bytes
+        layouts = []
+        for arr in arrays:
+            if offset + arr.nbytes > end:
+                return None
+            view = np.frombuffer(self._map, dtype=arr.dtype, count=arr.size, offset=offset)
+            view.reshape(arr.shape)[...] = arr
+            layouts.append((offset, tuple(arr.shape), arr.dtype.str))
+            offset += -(-arr.nbytes // _ALIGN) * _ALIGN
+        return tuple(layouts)
 
-    def next(self) -> tuple[Any, ...] | None:
-        """The next request (None: the node is gone)."""
-        return self._inbox.get()
+    def get(self, layout: Layout) -> NDArray[Any]:
+        """A copy of the array at ``layout`` (the slot may be reused once the frame is done)."""
+        offset, shape, dtype = layout
+        count = int(np.prod(shape))
+        view = np.frombuffer(self._map, dtype=np.dtype(dtype), count=count, offset=offset)
+        out: NDArray[Any] = view.reshape(shape).copy()
+        return out
 
     def close(self) -> None:
-        """Stop preparing frames."""
-        self._built.set()
-        self._pool.shutdown(wait=True, cancel_futures=True)
-
-    def _prepare(self, image: NDArray[Any], depth: NDArray[Any] | None, stamp: int) -> Any:
-        self._built.wait()
-        if self.core is None:
-            return None
-        return self.core.system.prepare(image, depth, stamp)
-
-    def _read(self) -> None:
-        while True:
-            try:
-                msg: tuple[Any, ...] = self.conn.recv()
-            except (EOFError, OSError):  # the node is gone
-                self._inbox.put(None)
-                return
-            if msg[0] == "track_slot" and self.slots is not None:  # copied out now
-                _, image_at, depth_at, stamp, odom = msg
-                image = self.slots.get(image_at)
-                depth = None if depth_at is None else self.slots.get(depth_at)
-                msg = ("track", image, depth, stamp, odom)
-            if msg[0] == "track":
-                msg = (*msg, self._pool.submit(self._prepare, msg[1], msg[2], msg[3]))
-            self._inbox.put(msg)
-            if msg[0] == "close":
-                return
+        """Unmap and close the buffer (idempotent)."""
+        if self.fd >= 0:
+            self._map.close()
+            os.close(self.fd)
+            self.fd = -1
 
 
 def _serve(conn: Connection, slots: FrameSlots | None = None) -> None:
     """The worker process: build the system, then answer requests until told to stop."""
     core: _Core | None = None
-    inbox = _ReadAhead(conn, slots)
-    try:
-        while True:
-            msg = inbox.next()
-            if msg is None:  # the parent is gone
+    while True:
+        try:
+            msg: tuple[Any, ...] = conn.recv()
+        except (EOFError, OSError):  # the parent is gone
+            if core is not None:
+                core.close()
+            return
+        kind = msg[0]
+        try:
+            if kind == "init":
+                core = _Core(*msg[1:])
+                conn.send(("ok", None))
+            elif core is None:
+                conn.send(("error", f"{kind!r} before the system was built"))
+            elif kind == "track":
+                conn.send(("ok", core.track(*msg[1:])))
+            elif kind == "track_slot" and slots is not None:
+                _, image_at, depth_at, stamp, odom = msg
+                image = slots.get(image_at)
+                depth = None if depth_at is None else slots.get(depth_at)
+                conn.send(("ok", core.track(image, depth, stamp, odom)))
+            elif kind == "call":
+                conn.send(("ok", core.call(msg[1], msg[2])))
+            else:  # "close"
+                if core is not None:
+                    core.close()
+                conn.send(("ok", None))
                 return
-            kind = msg[0]
-            try:
-                if kind == "init":
-                    try:
-                        core = _Core(*msg[1:])
-                    finally:
-                        inbox.built(core)
-                    conn.send(("ok", None))
-                elif core is None:
-                    conn.send(("error", f"{kind!r} before the system was built"))
-                elif kind == "track":
-                    _, image, depth, stamp, odom, prepared = msg
-                    conn.send(("ok", core.track(image, depth, stamp, odom, prepared)))
-                elif kind == "call":
-                    conn.send(("ok", core.call(msg[1], msg[2])))
-                else:  # "close"
-                    conn.send(("ok", None))
-                    return
-            except Exception as exc:  # noqa: BLE001 - every failure goes back to the node
-                conn.send(("error", f"{type(exc).__name__}: {exc}"))
-    finally:
-        inbox.close()
-        if core is not None:
-            core.close()
+        except Exception as exc:  # noqa: BLE001 - every failure goes back to the node
+            conn.send(("error", f"{type(exc).__name__}: {exc}"))
 
 
 class ProcessWorker(SlamWorker):
@@ -431,7 +426,7 @@ class ProcessWorker(SlamWorker):
         self._frame_slots: deque[int | None] = deque()  # slot of each frame in flight
         pixels = self.camera.width * self.camera.height
         with contextlib.suppress(OSError, AttributeError):  # no memfd: frames are pickled
-            self._slots = FrameSlots(pixels * 3 + ALIGN + pixels * 4, _SLOTS)
+            self._slots = FrameSlots(pixels * 3 + _ALIGN + pixels * 4, _SLOTS)
         slot_fd = -1 if self._slots is None else self._slots.fd
         # a fresh interpreter (never a fork of one holding MuJoCo / GL state), started by
         # module name: multiprocessing's "spawn" would re-run the caller's __main__ script
