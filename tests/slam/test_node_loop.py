@@ -170,6 +170,14 @@ def test_bad_loop_parameters_are_refused(ctx: Context) -> None:
         SlamNode(context=ctx, parameter_overrides={"worker": "gpu"})
     with pytest.raises(SlamInputError, match=r"result_latency -1\.0"):
         SlamNode(context=ctx, parameter_overrides={"result_latency": -1.0})
+    with pytest.raises(SlamInputError, match=r"global_ba_delay is -5: expected frames >= 0"):
+        SlamNode(context=ctx, parameter_overrides={"global_ba_delay": -5})
+
+
+def test_global_ba_delay_reaches_the_system(ctx: Context) -> None:
+    node = SlamNode(context=ctx, parameter_overrides={"global_ba_delay": 40})
+    assert node.config.global_ba_delay == 40
+    node.destroy_node()
 
 
 def test_a_worker_that_cannot_start_is_started_once_not_per_frame(

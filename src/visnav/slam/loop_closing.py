@@ -57,8 +57,9 @@ class LoopCloser:
         config: the SLAM parameters (loop and vocabulary settings).
         vocabulary: a pre-trained vocabulary (default: trained on the fly).
         global_ba: called after a correction when ``config.global_ba_after_loop``.
-        before_correction: called when a verified loop is about to correct the map (a
-            background adjustment still pending is merged first, as it was due earlier).
+        before_correction: called when a verified loop is about to be checked against
+            and applied to the pose graph (a background adjustment still pending is merged
+            first: it was due earlier, and merged later it would undo the correction).
     """
 
     def __init__(
