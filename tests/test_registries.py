@@ -81,6 +81,7 @@ ADDED = {
         "database_path",
         "localization",  # session 9: SLAM in localisation mode in database_path
         "global_ba_after_loop",  # session 9: SlamConfig's, for the car's real time
+        "global_ba_delay",  # session 10: a loop's global BA in a helper process
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
     "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},
