@@ -12,8 +12,10 @@ a snapshot (:class:`~visnav.slam.optimizer.BaProblem`) solved by gtsam in a help
 process, and the result is merged before frame ``n + delay`` is tracked, ``n`` being
 the frame that closed the loop, waiting for the helper if it is not done. The merge
 happens at the same frame whatever the machine's speed, so the same inputs give the
-same trajectory. A loop closed before the merge supersedes it (ORB-SLAM2 aborts the
-running adjustment): the stale result is dropped and a new snapshot is solved.
+same trajectory. A loop closed before the merge must not be undone by it:
+:class:`~visnav.slam.global_ba.GlobalAdjuster` merges the pending adjustment before the
+loop's pose-graph check (ORB-SLAM2 instead aborts the running one). Starting a new
+adjustment while one is pending supersedes it: the stale result is dropped.
 
 gtsam holds the GIL while it optimises (a thread would stall tracking as much as
 running it inline), hence a process, started by ``spawn`` with the system (its imports
@@ -34,8 +36,15 @@ from numpy.typing import NDArray
 
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.errors import SlamError
-from visnav.slam.geometry import inverse, orthonormalize, transform
-from visnav.slam.optimizer import BaProblem, BaResult, BaSolution, erase_outliers, solve_ba
+from visnav.slam.geometry import inverse, orthonormalize
+from visnav.slam.optimizer import (
+    BaProblem,
+    BaResult,
+    BaSolution,
+    apply_point_corrections,
+    erase_outliers,
+    solve_ba,
+)
 from visnav.slam.slam_map import SlamMap
 
 __all__ = ["BackgroundGlobalBa", "merge_global_ba"]
@@ -220,13 +229,7 @@ def merge_global_ba(
             parent_old = kfs[kf.parent].t_cw
             new_t[kf.id] = orthonormalize(kf.t_cw @ inverse(parent_old) @ new_t[kf.parent])
     corrections = {k: inverse(t) @ kfs[k].t_cw for k, t in new_t.items()}
-    ids = slam_map.good_points()
-    refs = slam_map.ref_kf[ids]
-    for k in np.unique(refs).tolist():
-        c = corrections.get(int(k))
-        if c is not None:
-            sel = ids[refs == k]
-            slam_map.positions[sel] = transform(c, slam_map.positions[sel])
+    apply_point_corrections(slam_map, corrections)  # every point with its reference keyframe
     for k, t in new_t.items():
         kfs[k].t_cw = t
     alive = ~slam_map.bad[problem.points]
