@@ -18,7 +18,7 @@ __all__ = ["cli_node"]
 def cli_node(args: argparse.Namespace, *, discover: bool = True) -> Iterator[Node]:
     """Yield a hidden node (name starts with ``_``) in the chosen domain, after discovery."""
     with Context(getattr(args, "domain", None)) as ctx:
-        node = Node(f"_visnav_cli_{os.getpid()}", context=ctx)
+        node = Node(f"_visnav_cli_{os.getpid()}", context=ctx, start_parameter_services=False)
         if discover:
             wait_for_discovery(ctx)
         yield node

@@ -24,6 +24,9 @@ VERBS: dict[str, tuple[str, str]] = {
     "sweep": ("visnav.cli.sweep", "run a scenario over seeds x settings (local or Ray), report"),
     "topic": ("visnav.cli.topic", "inspect and publish topics (ros2 topic)"),
     "node": ("visnav.cli.node", "list and inspect nodes (ros2 node)"),
+    "service": ("visnav.cli.service", "list, inspect and call services (ros2 service)"),
+    "action": ("visnav.cli.action", "list actions, send goals with feedback (ros2 action)"),
+    "param": ("visnav.cli.param", "list, get, set, dump and load node parameters (ros2 param)"),
     "tf": ("visnav.cli.tf", "echo transforms, publish static ones, show the TF tree"),
     "camera": ("visnav.cli.camera", "usb_cam / cv_camera: a camera, video file or stream"),
     "calibrate": ("visnav.cli.calibrate", "chessboard camera calibration -> camera_info YAML"),
@@ -84,6 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="[%(levelname)s] %(message)s",
         stream=sys.stderr,
     )
+    # PyOpenGL logs "No OpenGL_accelerate module loaded" at INFO on import (every sim start).
+    logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
     from visnav.cli._errors import describe_error
 
     try:

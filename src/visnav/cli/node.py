@@ -38,10 +38,24 @@ def cmd_info(args: argparse.Namespace) -> int:
     with cli_node(args) as node:
         summary = node_summary(node.context, fqn)
         print(fqn)
-        print("  Subscribers:")
-        for topic, type_name in sorted(summary["subscribers"]):
-            print(f"    {topic}: {type_name}")
-        print("  Publishers:")
-        for topic, type_name in sorted(summary["publishers"]):
-            print(f"    {topic}: {type_name}")
+        sections = (
+            ("Subscribers", "subscribers"),
+            ("Publishers", "publishers"),
+            ("Service Servers", "service_servers"),
+            ("Service Clients", "service_clients"),
+        )
+        for title, key in sections:
+            print(f"  {title}:")
+            for name, type_name in sorted(summary[key]):
+                if "/_action/" not in name:  # an action's parts are listed as the action
+                    print(f"    {name}: {type_name}")
+        for title, key in (
+            ("Action Servers", "service_servers"),
+            ("Action Clients", "service_clients"),
+        ):
+            print(f"  {title}:")
+            for name, type_name in sorted(summary[key]):
+                if name.endswith("/_action/send_goal") and type_name.endswith("_SendGoal"):
+                    action = name.removesuffix("/_action/send_goal")
+                    print(f"    {action}: {type_name.removesuffix('_SendGoal')}")
     return 0

@@ -6,6 +6,9 @@ processes (see :mod:`visnav.graph.transport`).
 
 from __future__ import annotations
 
+from visnav.graph.action_client import ActionClient, ClientGoalHandle
+from visnav.graph.action_server import ActionServer, ServerGoalHandle
+from visnav.graph.action_types import ActionError, CancelResponse, GoalResponse, GoalStatus
 from visnav.graph.clock import Clock, ClockType, TimePoint
 from visnav.graph.context import Context
 from visnav.graph.errors import (
@@ -13,9 +16,12 @@ from visnav.graph.errors import (
     ParameterAlreadyDeclaredError,
     ParameterError,
     ParameterNotDeclaredError,
+    ServiceError,
+    ServiceTimeoutError,
     TopicTypeConflictError,
     TransportError,
 )
+from visnav.graph.future import Future
 from visnav.graph.graph_cache import EndpointInfo, GraphCache, NodeInfo
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.names import (
@@ -30,7 +36,16 @@ from visnav.graph.names import (
     validate_node_name,
     validate_topic_name,
 )
-from visnav.graph.node import Node, NodeLogger, NodeOptions, Publisher, Subscription, Timer
+from visnav.graph.node import (
+    Client,
+    Node,
+    NodeLogger,
+    NodeOptions,
+    Publisher,
+    Service,
+    Subscription,
+    Timer,
+)
 from visnav.graph.param_dataclass import (
     ParamBinding,
     ParameterDescriptor,
@@ -54,11 +69,20 @@ from visnav.graph.qos import (
 from visnav.graph.subscription import SerializedMessage
 
 __all__ = [
+    "ActionClient",
+    "ActionError",
+    "ActionServer",
+    "CancelResponse",
+    "Client",
+    "ClientGoalHandle",
     "Clock",
     "ClockType",
     "Context",
     "DurabilityPolicy",
     "EndpointInfo",
+    "Future",
+    "GoalResponse",
+    "GoalStatus",
     "GraphCache",
     "GraphError",
     "HistoryPolicy",
@@ -88,6 +112,10 @@ __all__ = [
     "QoSProfile",
     "ReliabilityPolicy",
     "SerializedMessage",
+    "ServerGoalHandle",
+    "Service",
+    "ServiceError",
+    "ServiceTimeoutError",
     "SetParametersResult",
     "Subscription",
     "TimePoint",

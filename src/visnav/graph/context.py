@@ -63,14 +63,16 @@ from visnav.graph.keys import (
     parse_topic_key,
 )
 from visnav.graph.message_info import MessageInfo
+from visnav.graph.token_declarer import DeferredToken, TokenDeclarer
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
 if TYPE_CHECKING:
     from visnav.graph.node import Node, Publisher
+    from visnav.graph.service import Client, Service, _Request
     from visnav.graph.subscription import Subscription
     from visnav.graph.timer import Timer
 
-    _Entity = Subscription[Any] | Timer
+    _Entity = Subscription[Any] | Timer | Service[Any, Any] | Client[Any, Any]
 
 __all__ = ["ENV_TRANSPORT", "Context"]
 
@@ -121,6 +123,10 @@ class Context:
         self._ready: deque[_Entity] = deque()
         self._queued: set[_Entity] = set()
         self._running: _Entity | None = None
+        self._callback_thread: int | None = None
+        self._services: dict[str, list[Service[Any, Any]]] = {}
+        self._graph_cond = threading.Condition()
+        self._declarer: TokenDeclarer | None = None
         self._timers: list[Timer] = []
         self.faults = FaultBoundary()
         """Callback errors so far (per callback) and the nodes' error policies."""
@@ -155,6 +161,8 @@ class Context:
         self._shutdown = True
         with self._lock:
             self._cond.notify_all()
+        if self._declarer is not None:
+            self._declarer.close()
         if self._watch is not None:
             with contextlib.suppress(Exception):
                 self._watch.undeclare()
@@ -350,6 +358,86 @@ class Context:
 
     def _on_graph_change(self) -> None:
         self.wake()
+        with self._graph_cond:
+            self._graph_cond.notify_all()
+
+    def declare_token_deferred(self, key: str) -> DeferredToken | None:
+        """Declare a liveliness token off this thread (None for a local-only context)."""
+        z = self.zenoh
+        if z is None:
+            return None
+        with self._zenoh_lock:
+            if self._declarer is None:
+                self._declarer = TokenDeclarer(z.token)
+            declarer = self._declarer
+        return declarer.submit(key)
+
+    def flush_tokens(self, timeout_s: float = 5.0) -> bool:
+        """Wait until deferred tokens are declared (other processes can then see them)."""
+        declarer = self._declarer
+        return True if declarer is None else declarer.flush(timeout_s)
+
+    def wait_graph_change(self, timeout_s: float) -> None:
+        """Block until the graph changes or ``timeout_s`` passes (for waits on discovery)."""
+        with self._graph_cond:
+            self._graph_cond.wait(timeout_s)
+
+    # ------------------------------------------------------------------ services
+    @property
+    def lock(self) -> threading.RLock:
+        """The executor's lock (entities that queue work from other threads hold it)."""
+        return self._lock
+
+    def add_service(self, service: Service[Any, Any]) -> None:
+        """Called by :class:`Node`: make a server reachable by in-process clients."""
+        with self._lock:
+            self._check_ok()
+            self._services.setdefault(service.srv_name, []).append(service)
+
+    def remove_service(self, service: Service[Any, Any]) -> None:
+        """Called by :class:`Node`: detach a server and fail its queued requests."""
+        with self._lock:
+            servers = self._services.get(service.srv_name, [])
+            if service in servers:
+                servers.remove(service)
+            if not servers:
+                self._services.pop(service.srv_name, None)
+            waiting = list(service.queue)
+            service.queue.clear()
+        # answered outside the lock: replies go through Zenoh, whose threads take this lock
+        for request in waiting:
+            request.fail(f"{service.describe()} was destroyed before answering")
+
+    def local_service(self, name: str, type_name: str) -> Service[Any, Any] | None:
+        """The first in-process server of ``name`` with type ``type_name``, or None."""
+        with self._lock:
+            for service in self._services.get(name, ()):
+                if service.srv_type.name == type_name:
+                    return service
+        return None
+
+    def service_is_ready(self, name: str, type_name: str) -> bool:
+        """Whether a server of ``name`` and ``type_name`` is in this process or the graph."""
+        if self.local_service(name, type_name) is not None:
+            return True
+        return self.graph.has_service_server(name, type_name)
+
+    def deliver_request(self, service: Service[Any, Any], request: _Request) -> None:
+        """Queue a request for ``service`` (any thread) and wake the executor."""
+        with self._lock:
+            service.enqueue(request)
+            self._schedule(service)
+            self._cond.notify()
+
+    def notify_ready(self, entity: _Entity) -> None:
+        """Put ``entity`` (which has work now) in the ready ring (any thread)."""
+        with self._lock:
+            self._schedule(entity)
+            self._cond.notify()
+
+    def in_callback(self) -> bool:
+        """Whether the calling thread is running a callback of this context."""
+        return self._callback_thread == threading.get_ident()
 
     def _on_token(self, token: LivelinessToken) -> None:
         """A latched publisher appeared in another session: its subscribers here fetch its cache."""
@@ -454,11 +542,13 @@ class Context:
             if taken is None:
                 return False
         entity, call = taken
+        self._callback_thread = threading.get_ident()
         try:
             call()
         except Exception as exc:  # noqa: BLE001 - the fault boundary: log and go on
             self.faults.report(entity.node, entity.entity_id, entity.describe(), exc)
         finally:
+            self._callback_thread = None
             with lock:
                 self._spinning = False
                 self._running = None

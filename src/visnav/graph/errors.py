@@ -10,6 +10,8 @@ __all__ = [
     "ParameterAlreadyDeclaredError",
     "ParameterError",
     "ParameterNotDeclaredError",
+    "ServiceError",
+    "ServiceTimeoutError",
     "TopicTypeConflictError",
     "TransportError",
 ]
@@ -41,3 +43,11 @@ class ParameterNotDeclaredError(ParameterError, LookupError):
 
 class ParameterAlreadyDeclaredError(ParameterError):
     """A parameter was declared twice."""
+
+
+class ServiceError(GraphError):
+    """A service call failed: the server raised, went away or sent a bad reply."""
+
+
+class ServiceTimeoutError(ServiceError, TimeoutError):
+    """A service call got no response within its timeout."""

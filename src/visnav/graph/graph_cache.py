@@ -34,9 +34,14 @@ class NodeInfo:
 
 @dataclasses.dataclass(frozen=True)
 class EndpointInfo:
-    """A publisher or subscription in the graph (rclpy's TopicEndpointInfo)."""
+    """A publisher, subscription, service server or client in the graph (rclpy's TopicEndpointInfo).
 
-    kind: str  # "publisher" or "subscription"
+    ``kind`` is ``"publisher"``, ``"subscription"``, ``"service_server"`` or
+    ``"service_client"``; for the last two ``topic`` is the service name and
+    ``type_name`` the service type (``pkg/srv/Name``).
+    """
+
+    kind: str
     topic: str
     type_name: str
     node_name: str
@@ -77,12 +82,19 @@ class GraphCache:
         for cb in list(self._listeners):
             cb()
 
-    def put(self, key: str) -> None:
-        """Add a token key (ignored if it is not a visnav/rmw_zenoh token)."""
-        try:
-            token = parse_liveliness_token(key)
-        except ValueError:
+    def put(self, key: str, token: LivelinessToken | None = None) -> None:
+        """Add a token key (ignored if it is not a visnav/rmw_zenoh token).
+
+        ``token`` is its parsed form when the caller has it (local entities), else the
+        key is parsed.
+        """
+        if key in self._tokens:  # e.g. a local entity's own token coming back from Zenoh
             return
+        if token is None:
+            try:
+                token = parse_liveliness_token(key)
+            except ValueError:
+                return
         with self._lock:
             if key in self._tokens:
                 return
@@ -109,17 +121,39 @@ class GraphCache:
 
     def endpoints(self, topic: str | None = None) -> list[EndpointInfo]:
         """Return publishers and subscriptions (optionally of one topic)."""
+        return self._endpoints(("MP", "MS"), topic)
+
+    def service_endpoints(self, service: str | None = None) -> list[EndpointInfo]:
+        """Return service servers and clients (optionally of one service)."""
+        return self._endpoints(("SS", "SC"), service)
+
+    def has_service_server(self, service: str, type_name: str) -> bool:
+        """Whether a server of ``service`` with ``type_name`` is in the graph."""
         with self._lock:
             toks = list(self._tokens.values())
+        return any(t.kind == "SS" and t.topic == service and t.type_name == type_name for t in toks)
+
+    def service_names_and_types(self) -> list[tuple[str, list[str]]]:
+        """Return ``[(service, [types])]`` of every service with a server, sorted."""
+        types: dict[str, set[str]] = {}
+        for e in self.service_endpoints():
+            if e.kind == "service_server":
+                types.setdefault(e.topic, set()).add(e.type_name)
+        return [(t, sorted(v)) for t, v in sorted(types.items())]
+
+    def _endpoints(self, kinds: tuple[str, str], topic: str | None) -> list[EndpointInfo]:
+        with self._lock:
+            toks = list(self._tokens.values())
+        names = {"MP": "publisher", "MS": "subscription", "SS": "service_server"}
         out = []
         for t in toks:
-            if t.kind not in ("MP", "MS") or t.topic is None:
+            if t.kind not in kinds or t.topic is None:
                 continue
             if topic is not None and t.topic != topic:
                 continue
             out.append(
                 EndpointInfo(
-                    kind="publisher" if t.kind == "MP" else "subscription",
+                    kind=names.get(t.kind, "service_client"),
                     topic=t.topic,
                     type_name=t.type_name or "",
                     node_name=t.node_name,

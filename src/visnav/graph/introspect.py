@@ -166,7 +166,9 @@ def subscription_qos_for(ctx: Context, topic: str) -> QoSProfile:
 
 
 def node_summary(ctx: Context, fqn: str) -> dict[str, list[tuple[str, str]]]:
-    """Return ``{"publishers": [(topic, type)], "subscribers": [...]}`` of a node.
+    """Return a node's endpoints: ``{kind: [(topic or service, type)]}``.
+
+    Kinds: ``publishers``, ``subscribers``, ``service_servers``, ``service_clients``.
 
     Raises:
         UnknownTopicError: no such node (closest names suggested).
@@ -175,11 +177,22 @@ def node_summary(ctx: Context, fqn: str) -> dict[str, list[tuple[str, str]]]:
     if fqn not in nodes:
         msg = f"node '{fqn}' is not in the graph (domain {ctx.domain!r}){_suggest(fqn, nodes)}"
         raise UnknownTopicError(msg)
-    out: dict[str, list[tuple[str, str]]] = {"publishers": [], "subscribers": []}
-    for e in ctx.graph.endpoints():
+    out: dict[str, list[tuple[str, str]]] = {
+        "publishers": [],
+        "subscribers": [],
+        "service_servers": [],
+        "service_clients": [],
+    }
+    keys = {
+        "publisher": "publishers",
+        "subscription": "subscribers",
+        "service_server": "service_servers",
+        "service_client": "service_clients",
+    }
+    for e in [*ctx.graph.endpoints(), *ctx.graph.service_endpoints()]:
         if e.node_fqn != fqn:
             continue
-        key = "publishers" if e.kind == "publisher" else "subscribers"
+        key = keys[e.kind]
         if (e.topic, e.type_name) not in out[key]:
             out[key].append((e.topic, e.type_name))
     return out

@@ -31,7 +31,7 @@ from visnav.graph.clock import Clock, ClockType
 from visnav.graph.context import Context
 from visnav.graph.errors import GraphError, TopicTypeConflictError
 from visnav.graph.graph_cache import EndpointInfo
-from visnav.graph.keys import liveliness_token, topic_key
+from visnav.graph.keys import EntityKind, topic_key
 from visnav.graph.logger import NodeLogger
 from visnav.graph.message_info import MessageInfo, encode_attachment
 from visnav.graph.names import (
@@ -40,6 +40,8 @@ from visnav.graph.names import (
     resolve_node_name_and_namespace,
     resolve_topic_name,
 )
+from visnav.graph.param_dataclass import ParameterDescriptor
+from visnav.graph.param_services import ParameterServices
 from visnav.graph.parameters import Parameter, ParameterStore, SetParametersResult
 from visnav.graph.qos import (
     DurabilityPolicy,
@@ -47,20 +49,26 @@ from visnav.graph.qos import (
     QoSProfile,
     ReliabilityPolicy,
     check_qos_compatibility,
+    qos_profile_services_default,
     to_qos,
 )
+from visnav.graph.service import Client, Service
 from visnav.graph.subscription import RemotePayload, Subscription
 from visnav.graph.timer import Timer
+from visnav.graph.token_keys import trusted_token
 from visnav.msgs.serde import CdrSerializer, msg_type_name, typestore
+from visnav.msgs.srv import ServiceType, get_service_type
 from visnav.msgs.time import time_to_ns
 from visnav.msgs.types import Clock as ClockMsg
 
 __all__ = [
+    "Client",
     "Node",
     "NodeLogger",
     "NodeOptions",
     "Publisher",
     "RemotePayload",
+    "Service",
     "Subscription",
     "Timer",
 ]
@@ -73,6 +81,11 @@ _CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 @functools.cache
 def _type_hash(type_name: str) -> str:
     return str(typestore().hash_rihs01(type_name))
+
+
+@functools.lru_cache(maxsize=4096)
+def _service_key(domain: int, name: str, type_name: str) -> str:
+    return topic_key(domain, name, type_name, _type_hash(type_name))
 
 
 class NodeOptions(TypedDict, total=False):
@@ -88,6 +101,7 @@ class NodeOptions(TypedDict, total=False):
     parameter_overrides: Mapping[str, Any] | Sequence[Parameter] | None
     remappings: Mapping[str, str] | Sequence[str] | None
     use_sim_time: bool | None
+    start_parameter_services: bool
 
 
 class Publisher(Generic[MsgT]):
@@ -151,6 +165,11 @@ class Publisher(Generic[MsgT]):
             now, now, self.sequence, self.node.context.zid, self.entity_id, from_this_process=True
         )
 
+    def has_listeners(self) -> bool:
+        """Whether a message published now would reach anyone (in process or remote)."""
+        zpub = self._zpub
+        return bool(self.targets) or (zpub is not None and zpub.wants_sample())
+
     def get_subscription_count(self) -> int:
         """Number of matched subscriptions in the graph (all processes)."""
         return self.node.count_subscribers(self.topic_name)
@@ -179,6 +198,8 @@ class Node:
             :class:`Parameter`).
         remappings: rules ``{"from": "to"}`` or ``["from:=to", "__ns:=/x"]``.
         use_sim_time: shortcut for the ``use_sim_time`` parameter override.
+        start_parameter_services: serve the parameter services (``~/get_parameters``,
+            ...) and publish ``/parameter_events`` (rclpy's option; default True).
     """
 
     def __init__(
@@ -190,6 +211,7 @@ class Node:
         parameter_overrides: Mapping[str, Any] | Sequence[Parameter] | None = None,
         remappings: Mapping[str, str] | Sequence[str] | None = None,
         use_sim_time: bool | None = None,
+        start_parameter_services: bool = True,
     ) -> None:
         self._owns_context = context is None
         self.context = context if context is not None else Context()
@@ -201,6 +223,10 @@ class Node:
         self._publishers: list[Publisher[Any]] = []
         self._subscriptions: list[Subscription[Any]] = []
         self._timers: list[Timer] = []
+        self._services: list[Service[Any, Any]] = []
+        self._clients: list[Client[Any, Any]] = []
+        self._descriptors: dict[str, ParameterDescriptor] = {}
+        self._param_services: ParameterServices | None = None
         self._tokens: dict[int, tuple[str, Any]] = {}
         self._destroyed = False
         self._logger = NodeLogger(self.get_fully_qualified_name())
@@ -221,6 +247,8 @@ class Node:
         self._params.declare("use_sim_time", value=False)
         self._params.add_on_set_callback(self._on_params)
         self._apply_sim_time(bool(self._params.get("use_sim_time").value))
+        if start_parameter_services:
+            self._param_services = ParameterServices(self)
 
     # ------------------------------------------------------------------ identity
     def get_name(self) -> str:
@@ -256,13 +284,15 @@ class Node:
         topic: str | None = None,
         type_name: str | None = None,
         qos: QoSProfile | None = None,
+        *,
+        deferred: bool = False,
     ) -> None:
-        key = liveliness_token(
+        key, token = trusted_token(
             self.context.domain,
             self.context.zid,
             self.node_id,
             entity_id,
-            kind,
+            EntityKind(kind),
             self._namespace,
             self._name,
             topic=topic,
@@ -271,9 +301,12 @@ class Node:
             qos=qos,
         )
         z = self.context.zenoh
-        handle = z.token(key) if z is not None else None
+        if deferred:
+            handle: Any = self.context.declare_token_deferred(key)
+        else:
+            handle = z.token(key) if z is not None else None
         self._tokens[entity_id] = (key, handle)
-        self.context.graph.put(key)
+        self.context.graph.put(key, token)
 
     def _retract(self, entity_id: int) -> None:
         key, handle = self._tokens.pop(entity_id, ("", None))
@@ -388,11 +421,126 @@ class Node:
             self._timers.remove(timer)
             self.context.remove_timer(timer)
 
+    # ------------------------------------------------------------------ services
+    def create_service(
+        self,
+        srv_type: ServiceType | str,
+        srv_name: str,
+        callback: Callable[[Any, Any], Any],
+        *,
+        qos_profile: QoSProfile | int = qos_profile_services_default,
+    ) -> Service[Any, Any]:
+        """Create a service server (rclpy signature): ``callback(request, response) -> response``.
+
+        Args:
+            srv_type: a :class:`~visnav.msgs.srv.ServiceType` or its name
+                (``"std_srvs/srv/Trigger"``).
+            srv_name: the service name (expanded and remapped as topics are).
+            callback: runs in the executor; fills in and returns ``response``.
+            qos_profile: its depth bounds the queue of waiting requests.
+
+        Raises:
+            UnknownMessageTypeError: an unknown service type.
+            InvalidNameError: the name is invalid.
+        """
+        self._check_alive()
+        stype = get_service_type(srv_type)
+        name = self.resolve_topic_name(srv_name)
+        return self._add_service(stype, name, callback, to_qos(qos_profile))
+
+    def _add_service(
+        self,
+        stype: ServiceType,
+        name: str,
+        callback: Callable[[Any, Any], Any],
+        qos: QoSProfile,
+        *,
+        deferred_token: bool = False,
+        queryable: bool = True,
+        service_cls: type[Service[Any, Any]] = Service,
+    ) -> Service[Any, Any]:
+        """Create a server of a resolved name (the parameter services' and actions' path)."""
+        service: Service[Any, Any] = service_cls(self, stype, name, callback, qos)
+        self.context.add_service(service)
+        self._services.append(service)
+        z = self.context.zenoh
+        if z is not None and queryable:
+            service.attach_transport(z.session, self._service_key(name, stype))
+        self._announce(service.entity_id, "SS", name, stype.name, qos, deferred=deferred_token)
+        return service
+
+    def create_client(
+        self,
+        srv_type: ServiceType | str,
+        srv_name: str,
+        *,
+        qos_profile: QoSProfile | int = qos_profile_services_default,
+    ) -> Client[Any, Any]:
+        """Create a service client (rclpy signature).
+
+        Raises:
+            UnknownMessageTypeError: an unknown service type.
+            InvalidNameError: the name is invalid.
+        """
+        self._check_alive()
+        stype = get_service_type(srv_type)
+        name = self.resolve_topic_name(srv_name)
+        qos = to_qos(qos_profile)
+        client: Client[Any, Any] = Client(self, stype, name, qos)
+        self._clients.append(client)
+        z = self.context.zenoh
+        if z is not None:
+            client.attach_transport(z.session, self._service_key(name, stype))
+        self._announce(client.entity_id, "SC", name, stype.name, qos)
+        return client
+
+    def _service_key(self, name: str, stype: ServiceType) -> str:
+        return _service_key(self.context.domain, name, stype.name)
+
+    def destroy_service(self, service: Service[Any, Any]) -> None:
+        """Remove a service server (its queued requests are answered with an error)."""
+        if service in self._services:
+            self._services.remove(service)
+            service.close_transport()
+            self.context.remove_service(service)
+            self._retract(service.entity_id)
+
+    def destroy_client(self, client: Client[Any, Any]) -> None:
+        """Remove a service client."""
+        if client in self._clients:
+            self._clients.remove(client)
+            self._retract(client.entity_id)
+
+    @property
+    def remapping_rules(self) -> list[RemapRule]:
+        """The node's remapping rules (empty when it has none)."""
+        return list(self._rules)
+
+    @property
+    def services(self) -> list[Service[Any, Any]]:
+        """This node's service servers."""
+        return list(self._services)
+
+    @property
+    def clients(self) -> list[Client[Any, Any]]:
+        """This node's service clients."""
+        return list(self._clients)
+
+    def get_service_names_and_types(self) -> list[tuple[str, list[str]]]:
+        """``(service, [types])`` of every service with a server in the graph."""
+        return self.context.graph.service_names_and_types()
+
     def destroy_node(self) -> None:
         """Remove the node and all its entities (closes a private context)."""
         if self._destroyed:
             return
         self._destroyed = True
+        if self._param_services is not None:
+            self._param_services.close()
+        for srv in list(self._services):
+            self.destroy_service(srv)
+        for cli in list(self._clients):
+            self.destroy_client(cli)
         for p in list(self._publishers):
             self.destroy_publisher(p)
         for s in list(self._subscriptions):
@@ -429,9 +577,12 @@ class Node:
         ignore_override: bool = False,
     ) -> Parameter:
         """Declare a parameter; overrides replace ``value``."""
-        return self._params.declare(
+        param = self._params.declare(
             name, value, description=description, ignore_override=ignore_override
         )
+        if self._param_services is not None:
+            self._param_services.publish_event(new=[param])
+        return param
 
     def declare_parameters(
         self, namespace: str, parameters: Sequence[tuple[str, Any]]
@@ -452,8 +603,37 @@ class Node:
         return self._params.has(name)
 
     def set_parameters(self, parameters: Sequence[Parameter]) -> list[SetParametersResult]:
-        """Set declared parameters."""
-        return self._params.set(parameters)
+        """Set declared parameters (all or none); accepted ones go to ``/parameter_events``.
+
+        Raises:
+            ParameterNotDeclaredError: a name is not declared.
+            ParameterError: a value has the wrong type.
+        """
+        results = self._params.set(parameters)
+        if self._param_services is not None and all(r.successful for r in results):
+            changed = [self._params.get(p.name) for p in parameters]
+            self._param_services.publish_event(changed=changed)
+        return results
+
+    def parameter_names(self) -> list[str]:
+        """The declared parameter names, sorted."""
+        return self._params.names()
+
+    def set_parameter_descriptor(self, descriptor: ParameterDescriptor) -> None:
+        """Record what a declared parameter is (range, read-only; ``describe_parameters``)."""
+        self._descriptors[descriptor.name] = descriptor
+
+    def describe_parameter(self, name: str) -> ParameterDescriptor:
+        """The descriptor of a declared parameter (type and description at least).
+
+        Raises:
+            ParameterNotDeclaredError: not declared.
+        """
+        kind, description = self._params.info(name)
+        known = self._descriptors.get(name)
+        if known is not None:
+            return known
+        return ParameterDescriptor(name=name, type=kind, description=description)
 
     def add_on_set_parameters_callback(
         self, callback: Callable[[list[Parameter]], SetParametersResult]

@@ -244,6 +244,9 @@ class ParamBinding(Generic[T]):
             if reason:
                 raise ParameterError(f"{reason}; fix the override")
             self.descriptors[full] = descriptor
+            register = getattr(node, "set_parameter_descriptor", None)
+            if register is not None:
+                register(descriptor)
             values[f.name] = value
         self._values = values
         self.value: T = self._build(values, where="declared")

@@ -188,6 +188,15 @@ class ParameterStore:
         """Return the parameter, or ``Parameter(name, alternative)`` if undeclared."""
         return self.get(name) if name in self._values else Parameter(name, alternative)
 
+    def info(self, name: str) -> tuple[ParameterType, str]:
+        """The declared type and description of a parameter.
+
+        Raises:
+            ParameterNotDeclaredError: not declared.
+        """
+        self.get(name)
+        return self._types[name], self._descriptions.get(name, "")
+
     def names(self) -> list[str]:
         """Return the declared names, sorted."""
         return sorted(self._values)

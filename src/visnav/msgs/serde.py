@@ -15,7 +15,10 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
+from visnav.msgs.action import register_actions
 from visnav.msgs.errors import MessageError, UnknownMessageTypeError
+from visnav.msgs.gazebo_msgs import register_gazebo_msgs
+from visnav.msgs.srv import register_services
 
 __all__ = [
     "CdrSerializer",
@@ -35,10 +38,16 @@ def typestore() -> Typestore:
     """Return the ROS 2 Humble type store visnav uses (created once, then shared read-only).
 
     Returns:
-        The ``rosbags`` type store. Do not register types into it; make your own
-        with ``rosbags.typesys.get_typestore`` for that.
+        The ``rosbags`` type store, with the ``gazebo_msgs`` types the simulator
+        publishes (:mod:`visnav.msgs.gazebo_msgs`) and the services of
+        :mod:`visnav.msgs.srv` added. Do not register other types into it; make your
+        own with ``rosbags.typesys.get_typestore`` for that.
     """
-    return get_typestore(STORE)
+    store = get_typestore(STORE)
+    register_gazebo_msgs(store)
+    register_services(store)
+    register_actions(store)
+    return store
 
 
 def msg_type_name(msg_or_cls: Any) -> str:

@@ -19,6 +19,11 @@ Topics (relative names, so namespaces and remappings apply):
   (``actionlib_msgs/GoalStatusArray``, the status text carries the reason),
   ``~/global_costmap/costmap`` and ``~/local_costmap/costmap`` (1 Hz and 2 Hz).
 
+Actions and services (:mod:`visnav.planning.nav_actions`): ``move_base``
+(``move_base_msgs/action/MoveBase``) and ``navigate_to_pose``
+(``nav2_msgs/action/NavigateToPose``) with feedback, result, cancel and preemption;
+``~/clear_costmaps`` (``std_srvs/srv/Empty``) and ``~/make_plan`` (``nav_msgs/srv/GetPlan``).
+
 Python API: ``handle = node.go_to(pose)`` with a ``PoseStamped`` (any frame) or
 ``(x, y, yaw)`` in the global frame; ``handle.status`` / ``handle.text`` /
 ``handle.error``; ``node.cancel()``.
@@ -62,6 +67,7 @@ from visnav.msgs.types import Header, Odometry, Path, PoseStamped, Twist, Vector
 from visnav.planning.global_planner import GlobalPlanner, GlobalPlannerParams, path_to_msg
 from visnav.planning.local_planner import LocalPlanner, Pose2D
 from visnav.planning.local_planners import DWA_DEFAULTS, make_local_planner
+from visnav.planning.nav_actions import NavigationActions
 from visnav.planning.navigator import GoalHandle, NavError, Navigator, NavigatorParams
 from visnav.planning.rotation_shim import RotationShim
 from visnav.tf.buffer import Buffer
@@ -196,8 +202,19 @@ class NavigatorNode(Node):
         self._pose_text = ""
         self._was_active = False
         self._last_status: tuple[int, int, str] | None = None
+        self.actions = NavigationActions(self)
 
     # ------------------------------------------------------------------ API
+    @property
+    def velocity(self) -> tuple[float, float]:
+        """The robot's ``(v, w)``: from ``odom``, else the last command (before any odom)."""
+        return self._velocity if self._velocity is not None else self._last_cmd
+
+    @property
+    def last_cmd(self) -> tuple[float, float]:
+        """The last ``(v, w)`` published on ``cmd_vel``."""
+        return self._last_cmd
+
     @property
     def handle(self) -> GoalHandle | None:
         """The current (or last) goal."""
@@ -257,7 +274,8 @@ class NavigatorNode(Node):
         self._plan_pub.publish(path_to_msg(poses, self.global_costmap.global_frame, now))
 
     def control_cycle(self) -> None:
-        """One move_base cycle: poses from TF, navigator step, ``cmd_vel``."""
+        """One move_base cycle: poses from TF, navigator step, ``cmd_vel``, actions."""
+        self.actions.sync()
         h = self.navigator.handle
         active = h is not None and not h.done
         if not active:
@@ -286,6 +304,7 @@ class NavigatorNode(Node):
         self._publish_cmd(v, w)
         if h is not None and h.done:
             self._publish_status()
+            self.actions.sync()
         last = self.navigator.last_control
         if last is not None and last.ok and len(last.trajectory):
             self._local_pub.publish(
