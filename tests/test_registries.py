@@ -84,7 +84,18 @@ ADDED = {
         "global_ba_delay",  # session 10: a loop's global BA in a helper process
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
-    "sim": {"contact_rate", "lockstep", "require_wheel_odometry"},
+    "sim": {
+        "contact_rate",
+        "lockstep",
+        "require_wheel_odometry",
+        "packages",  # 27.5
+        "skip_missing_models",  # 27.2: SDF worlds whose model:// includes are not found
+        "controllers",  # 27.4: ros_control controllers started (controller_manager spawner)
+        "stopped_controllers",  # 27.4: loaded only (spawner --stopped)
+    },
+    # issue 27.5 (session 11): ROS 1's throttle of /tf (roslaunch files set it)
+    "robot_state_publisher": {"publish_frequency"},
+    "viz": {"packages"},  # issue 27.5: the robot model's package:// meshes
     # issue 14 item 4 (session 8): gmapping's maxUrange / linearUpdate / angularUpdate, and the
     # grid rebuilt on SLAM's corrected trajectory
     "mapper": {
@@ -177,6 +188,8 @@ def test_every_builtin_node_is_covered() -> None:
     # the scenario nodes (issue 17 item 3) are new: nothing to keep unchanged yet
     # amcl (issue 14 item 4) is new too; tests/mapping/test_amcl_node.py covers its parameters
     scenario_nodes = {"scenario_observer", "car_goals", "drone_mission", "amcl"}
+    # joint_state_publisher (issue 27.5) is new: tests/launch/test_joint_state_publisher.py
+    scenario_nodes |= {"joint_state_publisher", "joint_state_publisher_gui"}
     # usb_cam / cv_camera open their device when built: tests/perception/test_camera_driver.py
     drivers = {"usb_cam", "cv_camera"}
     assert set(BUILTIN_NODES) - covered - scenario_nodes - drivers == {"map_server", "ros1_bridge"}
@@ -337,6 +350,30 @@ IMU_BOX = """<robot name="imu_box">
   <gazebo reference="base_link">
     <sensor name="imu" type="imu"><update_rate>100</update_rate>
       <plugin name="imu_plugin" filename="libgazebo_ros_imu_sensor.so"/></sensor>
+    <sensor name="lidar" type="ray"><update_rate>5</update_rate><ray><scan><horizontal>
+      <samples>8</samples></horizontal></scan><range><min>0.1</min><max>5</max></range></ray>
+      <plugin name="lidar_plugin" filename="libgazebo_ros_ray_sensor.so"/></sensor>
+  </gazebo>
+  <gazebo><plugin name="ros_control" filename="libgazebo_ros_control.so"/></gazebo>
+</robot>"""
+
+
+_WHEEL = """<link name="{0}"><inertial><mass value="0.1"/>
+    <inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="{0}_joint" type="continuous"><parent link="base_link"/><child link="{0}"/>
+    <axis xyz="0 1 0"/></joint>"""
+BASES_BOX = f"""<robot name="bases_box">
+  <link name="base_link"><inertial><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision></link>
+  {"".join(_WHEEL.format(w) for w in ("lf", "rf", "lr", "rr"))}
+  <gazebo>
+    <plugin name="imu" filename="libgazebo_ros_imu.so"><bodyName>base_link</bodyName></plugin>
+    <plugin name="skid" filename="libgazebo_ros_skid_steer_drive.so">
+      <leftFrontJoint>lf_joint</leftFrontJoint><rightFrontJoint>rf_joint</rightFrontJoint>
+      <leftRearJoint>lr_joint</leftRearJoint><rightRearJoint>rr_joint</rightRearJoint></plugin>
+    <plugin name="planar" filename="libgazebo_ros_planar_move.so">
+      <commandTopic>planar/cmd_vel</commandTopic></plugin>
   </gazebo>
 </robot>"""
 
@@ -346,6 +383,11 @@ def test_every_sim_plugin_entry_builds(ctx: Context, monkeypatch: pytest.MonkeyP
     import os
 
     from visnav.sim import plugins
+    from visnav.sim.bases import PlanarMovePlugin, SkidSteerPlugin
+    from visnav.sim.imu_model import ImuModelPlugin
+    from visnav.sim.quadrotor_plugin import QuadrotorPlugin
+    from visnav.sim.ray_plugin import RayPlugin
+    from visnav.sim.ros_control import RosControlPlugin
     from visnav.sim.simulator import RobotSpawn, Simulator
 
     if os.environ.get("MUJOCO_GL", "").lower() not in ("egl", "osmesa"):
@@ -353,16 +395,22 @@ def test_every_sim_plugin_entry_builds(ctx: Context, monkeypatch: pytest.MonkeyP
     built_by = {
         "cameras": plugins.CameraPlugin,
         "imus": plugins.ImuPlugin,
+        "rays": RayPlugin,
         "odometry": plugins.OdometryPlugin,
         "diff_drives": plugins.DiffDrivePlugin,
         "joint_state_publishers": plugins.JointStatePlugin,
-        "quadrotors": plugins.QuadrotorPlugin,
+        "quadrotors": QuadrotorPlugin,
+        "imu_plugins": ImuModelPlugin,
+        "skid_steer_drives": SkidSteerPlugin,
+        "planar_moves": PlanarMovePlugin,
+        "ros_control": RosControlPlugin,
     }
     assert set(built_by) == set(SIM_PLUGINS)
     spawns = [
         RobotSpawn(source="car", spawn=(0.0, 0.0, 0.1, 0.0)),
         RobotSpawn(source="quadrotor", spawn=(3.0, 0.0, 1.0, 0.0), namespace="/q"),
         RobotSpawn(source=IMU_BOX, spawn=(-3.0, 0.0, 0.2, 0.0)),
+        RobotSpawn(source=BASES_BOX, spawn=(0.0, 3.0, 0.2, 0.0), namespace="/b"),
     ]
     with Simulator("empty", spawns, context=ctx) as sim:
         kinds = {type(p) for robot in sim.robots for p in robot.plugins}

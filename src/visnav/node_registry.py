@@ -33,6 +33,8 @@ BUILTIN_NODES: Mapping[str, str] = {
     "static_transform_publisher": "visnav.tf.static_tf:StaticTransformPublisherNode",
     "sim": "visnav.sim.sim_node:SimulatorNode",
     "robot_state_publisher": "visnav.tf.robot_state_node:RobotStatePublisherNode",
+    "joint_state_publisher": "visnav.tf.joint_state_publisher:JointStatePublisherNode",
+    "joint_state_publisher_gui": "visnav.tf.joint_state_publisher:JointStatePublisherGuiNode",
     "ego_planner_node": "visnav.planning.ego_planner.nodes:EgoPlannerNode",
     "traj_server": "visnav.planning.ego_planner.nodes:TrajServerNode",
     "grid_map": "visnav.mapping.grid_map_node:GridMapNode",

@@ -336,24 +336,24 @@ def test_unsupported_things_warn_by_name() -> None:
     ext = extensions(
         """<gazebo reference="camera_link">
           <material>Gazebo/Red</material><mu1>0.8</mu1><kp>1e6</kp>
-          <sensor type="gpu_ray" name="lidar"/>
+          <sensor type="sonar" name="lidar"/>
           <sensor type="camera" name="c"><camera><lens><type>gnomonical</type></lens></camera>
             <visualize>true</visualize><ray_thing/>
             <plugin name="p" filename="libgazebo_ros_camera.so"><unknown_tag/></plugin>
             <plugin name="q" filename="libfancy.so"/></sensor></gazebo>
-        <gazebo><plugin name="ctrl" filename="libgazebo_ros_control.so"/><static>false</static>
-        </gazebo>
+        <gazebo><plugin name="ctrl" filename="libgazebo_ros_vacuum_gripper.so"/>
+        <static>false</static></gazebo>
         <gazebo reference="camera_joint"><preserveFixedJoint>true</preserveFixedJoint>
         <stopCfm>0.1</stopCfm></gazebo>"""
     )
     joined = "\n".join(ext.warnings)
     for needle in (
         "<kp>",
-        "'gpu_ray'",
+        "'sonar'",
         "<lens>",
         "<unknown_tag>",
         "'libfancy.so'",
-        "'libgazebo_ros_control.so'",
+        "'libgazebo_ros_vacuum_gripper.so'",
         "<static>",
         "<stopCfm>",
         "<ray_thing>",

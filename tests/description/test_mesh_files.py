@@ -1,4 +1,6 @@
 """Mesh vertices read without MuJoCo agree with MuJoCo's loaders; bad files are MeshFileErrors."""
+# ASCII STL and Collada are read too (visnav hands MuJoCo vertex data, not files): see
+# tests/description/test_sdf_include.py for Collada units, colours and textures.
 
 from __future__ import annotations
 
@@ -96,12 +98,14 @@ def test_bounds_match_mujoco(tmp_path: Path, suffix: str, writer: object, seed: 
 @pytest.mark.parametrize(
     ("name", "content", "fragment"),
     [
-        ("a.dae", b"<COLLADA/>", "expected one of .stl, .obj, .msh"),
+        ("a.ply", b"ply", "expected one of .dae, .obj, .stl, .msh"),
+        ("a.dae", b"<COLLADA/>", "Collada file without a <scene>"),
+        ("a.dae", b"<COLLADA", "not a readable Collada file"),
         ("a.obj", b"# nothing\nf 1 2 3\n", "without 'v' vertex lines"),
         ("a.obj", b"v 1 2\n", r"'v' needs x y z \[w\]"),
         ("a.obj", b"v 1 two 3\n", "is not numbers"),
         ("a.obj", b"v 1 nan 3\n", "not finite"),
-        ("a.stl", b"solid x\nendsolid x\n", "not a binary STL"),
+        ("a.stl", b"solid x\nendsolid x\n", "no triangles|not a readable mesh"),
         ("a.msh", b"\x01\x00", "too short for an MSH header"),
         ("a.msh", struct.pack("<4i", 5, 0, 0, 0), "do not match"),
     ],
@@ -117,14 +121,17 @@ def test_bad_mesh_files_name_the_file_and_the_problem(
     assert "\n" not in str(info.value)
 
 
-def test_ascii_stl_is_refused_as_mujoco_refuses_it(tmp_path: Path) -> None:
+def test_ascii_stl_is_read_like_the_binary_one(tmp_path: Path) -> None:
+    # MuJoCo refuses ASCII STL files, but visnav passes it the vertices, not the file
     verts, faces = _tetra(RNG_SEED)
-    path = tmp_path / "ascii.stl"
-    _write_ascii_stl(path, verts, faces)
-    with pytest.raises(MeshFileError, match="ASCII STL is not loaded by MuJoCo"):
-        mesh_vertices(path)
+    ascii_path, binary_path = tmp_path / "ascii.stl", tmp_path / "binary.stl"
+    _write_ascii_stl(ascii_path, verts, faces)
+    _write_binary_stl(binary_path, verts, faces)
     with pytest.raises(ValueError, match="ASCII"):
-        _mujoco_bounds(path, (1.0, 1.0, 1.0))
+        _mujoco_bounds(ascii_path, (1.0, 1.0, 1.0))
+    a, b = mesh_vertices(ascii_path), mesh_vertices(binary_path)
+    np.testing.assert_allclose(a.min(axis=0), b.min(axis=0), atol=1e-6)
+    np.testing.assert_allclose(a.max(axis=0), b.max(axis=0), atol=1e-6)
 
 
 def test_missing_mesh_is_a_world_error_in_a_world(tmp_path: Path) -> None:
@@ -136,7 +143,7 @@ def test_missing_mesh_is_a_world_error_in_a_world(tmp_path: Path) -> None:
 
 @settings(max_examples=150, deadline=None)
 @given(
-    suffix=st.sampled_from([".stl", ".obj", ".msh"]),
+    suffix=st.sampled_from([".stl", ".obj", ".msh", ".dae"]),
     data=st.one_of(
         st.binary(max_size=400),
         st.lists(

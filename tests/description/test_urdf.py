@@ -189,14 +189,14 @@ def test_missing_mesh_names_file_element_and_paths(tmp_path: Path) -> None:
 
 
 def test_unsupported_mesh_format_is_a_warning(tmp_path: Path) -> None:
-    (tmp_path / "m.dae").write_text("<COLLADA/>")
+    (tmp_path / "m.ply").write_text("ply")  # Collada, OBJ, STL and MSH are read
     text = robot(
         f'<link name="a"><inertial><mass value="1"/>{INERTIA}</inertial>'
-        '<visual><geometry><mesh filename="m.dae"/></geometry></visual></link>'
+        '<visual><geometry><mesh filename="m.ply"/></geometry></visual></link>'
     )
     urdf = parse_urdf(text, base_dir=tmp_path)
     assert urdf.links["a"].visuals == ()
-    assert any("m.dae" in w and "STL or OBJ" in w for w in urdf.warnings)
+    assert any("m.ply" in w and "Collada, STL or OBJ" in w for w in urdf.warnings)
 
 
 def test_unknown_elements_and_transmissions_warn() -> None:
@@ -252,11 +252,6 @@ def test_unknown_elements_and_transmissions_warn() -> None:
         ('<link name="a"><visual><geometry/></visual></link>', "exactly one shape"),
         ('<link name="a"><inertial><mass value="-1"/></inertial></link>', "value=-1.0"),
         (
-            '<link name="a"><inertial><mass value="1"/>'
-            '<inertia ixx="1" iyy="1" izz="5" ixy="0" ixz="0" iyz="0"/></inertial></link>',
-            "not physical",
-        ),
-        (
             '<link name="a"/><link name="b"/><link name="c"/>'
             '<joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>'
             '<joint name="j2" type="fixed"><parent link="c"/><child link="b"/></joint>',
@@ -277,6 +272,46 @@ def test_bad_urdf_is_one_clear_error(body: str, needle: str) -> None:
     assert needle in text, text
     assert text.startswith("bad.urdf:")
     assert "Fix:" in text
+
+
+@pytest.mark.parametrize(
+    ("inertia", "moments"),
+    [
+        ("ixx='1' iyy='1' izz='5' ixy='0' ixz='0' iyz='0'", [2.0, 2.0, 4.0]),  # triangle
+        # Husarion ROSbot 2.0's body_link: a negative principal moment, then the triangle
+        ("ixx='0.01' ixy='0.01' ixz='0' iyy='0.01' iyz='0.01' izz='0.01'", None),
+    ],
+)
+def test_non_physical_inertia_is_replaced_by_the_nearest_physical_one(
+    inertia: str, moments: list[float] | None
+) -> None:
+    body = f"<link name='a'><inertial><mass value='1'/><inertia {inertia}/></inertial></link>"
+    urdf = parse_urdf(robot(body), source="bad.urdf")  # Gazebo runs it: not an error
+    (warning,) = urdf.warnings
+    assert warning.startswith("bad.urdf:")
+    assert "is not physical" in warning
+    assert "nearest physical tensor" in warning
+    inertial = urdf.links["a"].inertial
+    assert inertial is not None
+    eig = np.linalg.eigvalsh(inertial.inertia_matrix())
+    assert eig.min() >= -1e-12
+    assert eig[0] + eig[1] >= eig[2] - 1e-12
+    if moments is not None:
+        np.testing.assert_allclose(eig, moments)
+    again = robot(body.replace(inertia, " ".join(
+        f"{n}='{v!r}'" for n, v in zip(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"),
+                                       inertial.inertia, strict=True)
+    )))  # fmt: skip
+    assert not parse_urdf(again).warnings  # the replacement is physical
+
+
+def test_the_axis_of_a_fixed_joint_is_not_read() -> None:
+    """urdfdom reads <axis> of moving joints only (ROSbot 2.0 writes xyz="0 0 0" on a fixed one)."""
+    body = (
+        '<link name="a"/><link name="b"/><joint name="j" type="fixed"><parent link="a"/>'
+        '<child link="b"/><axis xyz="0 0 0"/></joint>'
+    )
+    assert parse_urdf(robot(body)).joints["j"].type == "fixed"
 
 
 def test_malformed_xml_reports_line_and_column() -> None:

@@ -8,6 +8,7 @@ from typing import Any
 import pytest
 
 from visnav.doctor import LiveObserver, Severity, diagnose, doctor_live
+from visnav.doctor.errors import DoctorError
 from visnav.doctor.synthetic import CarStreamConfig, car_stream
 from visnav.graph import Context, Node, qos_profile_tf_static
 from visnav.msgs import get_message_class
@@ -54,10 +55,15 @@ def test_live_publisher_identity_and_authority() -> None:
 
 def test_doctor_live_listens_for_the_duration(domain: int) -> None:
     start = time.monotonic()
-    report = doctor_live(duration_s=0.5)
+    with pytest.raises(DoctorError, match=f"no topics in graph domain {domain}: "):
+        doctor_live(duration_s=0.5)  # an empty domain is an error, not a healthy report
     assert 0.5 <= time.monotonic() - start < 5.0
-    assert not report.findings
+    with Context(transport="local") as ctx:
+        node = Node("talker", context=ctx)
+        node.create_publisher(get_message_class("std_msgs/msg/String"), "/chatter", 10)
+        report = doctor_live(context=ctx, duration_s=0.5)
     assert report.source == f"live graph, domain {domain}"
+    assert report.summary["topics"] == 1, report.format()
 
 
 @pytest.mark.slow

@@ -45,7 +45,9 @@ XML_SEED = b"""\
 <launch>
   <arg name="x" default="0"/>
   <arg name="rviz" default="false"/>
+  <arg name="twice" value="$(eval arg('x') * 2 + 1)"/>
   <param name="rate" type="double" value="30.0"/>
+  <param name="label" value="$(eval 'cam_' + str(twice) if x == 0 else 'none')"/>
   <rosparam>{a: 1, b: [1, 2]}</rosparam>
   <node pkg="tf2_ros" type="static_transform_publisher" name="tf1"
         args="0 0 $(arg x) 0 0 0 map odom"/>

@@ -74,7 +74,7 @@ def test_find_dirname_and_anon(ctx: SubstitutionContext, tmp_path: Path) -> None
         ("$(arg robt)", LaunchArgError, "did you mean 'robot'?"),
         ("$(arg nope)", LaunchArgError, "arguments in scope: empty, robot, which"),
         ("$(argg robot)", LaunchParseError, "did you mean $(arg ...)?"),
-        ("$(eval 1 + 2)", LaunchParseError, "$(eval ...) is not supported"),
+        ("$(eval 1 +)", LaunchParseError, "$(eval 1 +): not a valid expression"),
         ("$(arg robot", LaunchParseError, "unclosed substitution"),
         ("$()", LaunchParseError, "empty substitution"),
         ("$(arg a b)", LaunchParseError, "expected 1 argument"),

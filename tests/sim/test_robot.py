@@ -325,6 +325,6 @@ def test_point_mass_gets_minimal_inertia_and_mesh_geoms(tmp_path: Path) -> None:
     spec = mujoco.MjSpec()
     add_robot_to_spec(spec, desc)
     model = spec.compile()
-    assert model.nmesh == 1  # one asset shared by the visual and the collision geom
+    assert model.nmesh == 2  # the visual's triangles, the collision's convex hull points
     assert model.body("a").mass[0] == 2.0
     assert (model.body("a").inertia > 0).all()

@@ -42,7 +42,7 @@ from visnav.msgs import (
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.pointcloud import cloud_to_xyz
 from visnav.msgs.time import time_to_ns
-from visnav.sim.plugins import MultiDOFJointTrajectory
+from visnav.sim.quadrotor_plugin import MultiDOFJointTrajectory
 from visnav.sim.simulator import RobotSpawn, Simulator, SimulatorError
 from visnav.sim.vehicles.quadrotor import PositionCommand
 from visnav.tf import Buffer

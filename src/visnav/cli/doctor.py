@@ -1,7 +1,8 @@
 """``visnav doctor``: diagnose the data chain of a live graph or a bag.
 
 Exit code 0 when no error-level finding exists, 1 otherwise (and 1 with ``error: ...``
-when doctor itself cannot run).
+when doctor itself cannot run, or when the live graph has no topic at all: nothing runs
+in that domain).
 """
 
 from __future__ import annotations

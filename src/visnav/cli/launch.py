@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import logging
 import signal
+from dataclasses import replace
+from pathlib import Path
 from types import FrameType
 
 from visnav.launch.errors import LaunchArgError
@@ -17,11 +19,15 @@ _LOG = logging.getLogger("visnav.launch")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``launch`` arguments."""
     parser.description = (
-        "Start the nodes of a visnav YAML launch file or a roslaunch XML file (.launch). "
-        "Arguments are name:=value. Ctrl-C stops every node (SIGINT, then SIGTERM, then "
-        "SIGKILL). Format: docs/launch.md."
+        "Start the nodes of a visnav YAML launch file or a roslaunch XML file (.launch), "
+        "given as a path, a built-in name, or PACKAGE FILE as roslaunch takes it (the package "
+        "from --package or ROS_PACKAGE_PATH, the file found by name inside it). Arguments are "
+        "name:=value. Ctrl-C stops every node (SIGINT, then SIGTERM, then SIGKILL). Format: "
+        "docs/launch.md."
     )
-    parser.add_argument("file", help="launch file (.yaml, .launch/.xml) or a built-in one")
+    parser.add_argument(
+        "file", help="launch file (.yaml, .launch/.xml), a built-in one, or PACKAGE (then FILE)"
+    )
     parser.add_argument(
         "launch_args",
         nargs=argparse.REMAINDER,
@@ -46,6 +52,18 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="NAME=DIR",
         help="directory of a ROS package for $(find NAME) (repeatable)",
+    )
+    parser.add_argument(
+        "--skip-unmapped",
+        action="store_true",
+        help="roslaunch files: leave out the nodes and elements visnav cannot map (each one a "
+        "note) instead of refusing the file",
+    )
+    parser.add_argument(
+        "--skip-missing-models",
+        action="store_true",
+        help="load a world whose model:// includes are not all on this machine without them "
+        "(one warning; sets the sim node's skip_missing_models)",
     )
     parser.add_argument(
         "--sigterm-timeout",
@@ -89,18 +107,34 @@ def parse_packages(items: list[str]) -> dict[str, str]:
 
 def cmd_launch(args: argparse.Namespace) -> int:
     """``launch``."""
-    from visnav.launch.loader import load_launch, parse_launch_args
+    from visnav.launch.loader import find_package_launch_file, load_launch, parse_launch_args
     from visnav.launch.supervisor import Launcher
 
     launch_args = _late_options(args)
+    packages = parse_packages(args.package)
+    file: str | Path = args.file
+    if launch_args and ":=" not in launch_args[0] and not Path(args.file).is_file():
+        # roslaunch PACKAGE FILE [args]
+        file = find_package_launch_file(args.file, launch_args[0], packages=packages)
+        launch_args = launch_args[1:]
     description = load_launch(
-        args.file, parse_launch_args(launch_args), packages=parse_packages(args.package)
+        file,
+        parse_launch_args(launch_args),
+        packages=packages,
+        skip_unmapped=args.skip_unmapped,
     )
+    if args.skip_missing_models:
+        description.nodes = [
+            replace(node, params={**node.params, "skip_missing_models": True})
+            if node.executable == "sim"
+            else node
+            for node in description.nodes
+        ]
     if args.print_only:
         print(description.dumps() if args.json else description.format())
         return 0
-    for note in description.notes:
-        _LOG.warning("%s", note)
+    for note in description.notes:  # what the import mapped or left out: expected, not faults
+        _LOG.info("%s", note)
     launcher = Launcher(
         description,
         domain=args.domain,

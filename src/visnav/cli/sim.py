@@ -1,8 +1,8 @@
 """``visnav sim``: run a world with a robot and publish its sensors on the graph.
 
 ``visnav sim --world office|forest|FILE --robot car|quadrotor|FILE [--spawn x y z yaw]
-[--arg name:=value ...] [--world-param name:=value ...] [--realtime] [--duration S]
-[--seed N]`` wraps :func:`run_sim`. It prints the real-time factor at the end (also
+[--arg name:=value ...] [--package NAME=DIR ...] [--world-param name:=value ...] [--realtime]
+[--duration S] [--seed N]`` wraps :func:`run_sim`. It prints the real-time factor at the end (also
 after Ctrl-C).
 """
 
@@ -13,6 +13,7 @@ import contextlib
 import logging
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from visnav.errors import VisnavError
@@ -22,7 +23,14 @@ if TYPE_CHECKING:
     from visnav.graph.context import Context
     from visnav.sim.simulator import SimStats
 
-__all__ = ["SimArgumentError", "add_arguments", "cmd_sim", "parse_assignments", "run_sim"]
+__all__ = [
+    "SimArgumentError",
+    "add_arguments",
+    "cmd_sim",
+    "parse_assignments",
+    "parse_packages",
+    "run_sim",
+]
 
 _LOG = logging.getLogger("visnav.sim")
 
@@ -47,6 +55,33 @@ def parse_assignments(items: Sequence[str], *, what: str) -> dict[str, str]:
     return out
 
 
+def parse_packages(items: Sequence[str]) -> dict[str, str]:
+    """Parse ``--package NAME=DIR`` options (as ``visnav launch`` takes them).
+
+    Raises:
+        SimArgumentError: an item that is not ``NAME=DIR``, or a DIR that is not a directory.
+    """
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        name, path = name.strip(), path.strip()
+        if not sep or not name or not path:
+            msg = (
+                f"--package {item!r}: expected NAME=DIR "
+                "(e.g. --package turtlebot3_description=~/ws/src/turtlebot3/turtlebot3_description)"
+            )
+            raise SimArgumentError(msg)
+        directory = Path(path).expanduser()
+        if not directory.is_dir():
+            msg = (
+                f"--package {item!r}: {str(directory)!r} is not a directory. Fix: give the "
+                f"directory that holds package {name!r} (its package.xml)"
+            )
+            raise SimArgumentError(msg)
+        out[name] = str(directory)
+    return out
+
+
 def _world_params(items: Mapping[str, str]) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for name, text in items.items():
@@ -62,11 +97,13 @@ def run_sim(
     context: Context,
     spawn: Sequence[float] | None = None,
     robot_args: Mapping[str, str] | None = None,
+    packages: Mapping[str, str] | None = None,
     world_params: Mapping[str, Any] | None = None,
     realtime: bool = False,
     duration_s: float | None = None,
     seed: int | None = None,
     progress_every_s: float | None = None,
+    skip_missing_models: bool = False,
 ) -> SimStats:
     """Load a world and a robot, simulate, and return the timing.
 
@@ -76,6 +113,10 @@ def run_sim(
         context: the graph context the simulator's nodes join.
         spawn: ``(x, y, z, yaw)``; default the world's spawn point.
         robot_args: Xacro arguments of the robot.
+        packages: package name -> directory, for the robot's ``package://`` meshes and
+            ``$(find pkg)``, and the world's ``model://`` models these packages export
+            (default: ROS_PACKAGE_PATH / AMENT_PREFIX_PATH and the directories around the
+            robot file).
         world_params: parameters of a built-in world generator (``forest``).
         realtime: pace to the wall clock.
         duration_s: sim seconds to run; None runs until Ctrl-C or shutdown.
@@ -83,6 +124,8 @@ def run_sim(
             (None: the world keeps its own seed, sensors use 0).
         progress_every_s: log the real-time factor so far every this many wall
             seconds (logger ``visnav.sim``); None: never.
+        skip_missing_models: load an SDF world without the models that are not
+            found (one warning) instead of failing.
 
     Returns:
         The run's timing (sim time, wall time, real-time factor, rendering share);
@@ -101,8 +144,18 @@ def run_sim(
             msg = f"--spawn takes x y z yaw, got {len(spawn)} numbers: {list(spawn)}"
             raise SimArgumentError(msg)
         pose = (float(spawn[0]), float(spawn[1]), float(spawn[2]), float(spawn[3]))
-    loaded = load_world(world, params=world_params or None, seed=seed)
-    robots = [RobotSpawn(source=robot, args=dict(robot_args or {}), spawn=pose)]
+    loaded = load_world(
+        world,
+        params=world_params or None,
+        seed=seed,
+        packages=packages,
+        skip_missing_models=skip_missing_models,
+    )
+    robots = [
+        RobotSpawn(
+            source=robot, args=dict(robot_args or {}), packages=dict(packages or {}), spawn=pose
+        )
+    ]
     sim_seed = 0 if seed is None else seed
     with Simulator(loaded, robots, context=context, seed=sim_seed, realtime=realtime) as sim:
         before = sim.stats
@@ -156,11 +209,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="Xacro argument of the robot (repeatable)",
     )
     parser.add_argument(
+        "--package",
+        action="append",
+        default=[],
+        metavar="NAME=DIR",
+        help="directory of a ROS package, for package://, $(find NAME) and the model:// "
+        "models it exports (repeatable)",
+    )
+    parser.add_argument(
         "--world-param",
         action="append",
         default=[],
         metavar="NAME:=VALUE",
         help="parameter of a built-in world, e.g. obstacles:=150 (repeatable)",
+    )
+    parser.add_argument(
+        "--skip-missing-models",
+        action="store_true",
+        help="load an SDF world without the model:// models that are not found",
     )
     parser.add_argument("--realtime", action="store_true", help="pace to the wall clock")
     parser.add_argument("--duration", type=float, default=None, help="sim seconds to run")
@@ -181,6 +247,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     # PyOpenGL logs "No OpenGL_accelerate module loaded" at INFO level on import.
     logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
     robot_args = parse_assignments(args.arg, what="--arg")
+    packages = parse_packages(args.package)
     world_params = _world_params(parse_assignments(args.world_param, what="--world-param"))
     with Context(getattr(args, "domain", None)) as ctx:
         refuse_second_simulation(ctx, command="visnav sim")
@@ -190,11 +257,13 @@ def cmd_sim(args: argparse.Namespace) -> int:
             context=ctx,
             spawn=args.spawn,
             robot_args=robot_args,
+            packages=packages,
             world_params=world_params,
             realtime=args.realtime,
             duration_s=args.duration,
             seed=args.seed,
             progress_every_s=10.0,
+            skip_missing_models=args.skip_missing_models,
         )
     print(stats.summary())
     return 0

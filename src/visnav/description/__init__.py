@@ -15,6 +15,8 @@ read robots through them. Modules:
   :mod:`~visnav.description.world_yaml`, :mod:`~visnav.description.sdf_world`,
   :mod:`~visnav.description.mesh_files` (mesh vertices), and the
   built-in world generators in :mod:`~visnav.description.worlds`;
+* :mod:`~visnav.description.warning_summary` (the one grouped warning block a load logs),
+  :mod:`~visnav.description.xacro_locations` (file:line of each element through Xacro);
 * :mod:`~visnav.description.rigid` (rotation helpers), :mod:`~visnav.description.errors`.
 
 Submodules are imported explicitly; importing this package imports nothing else.

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
+from typing import Literal
 
 from visnav.description._sdf_reader import SdfReader, has_any, plugin_node
 from visnav.description.errors import QuadrotorParamsError
+from visnav.description.gazebo_materials import GAZEBO_COLOURS
 from visnav.description.gazebo_specs import (
     DiffDriveSpec,
     JointStatePublisherSpec,
@@ -26,28 +29,6 @@ __all__ = [
     "parse_p3d",
     "parse_quadrotor",
 ]
-
-# Gazebo classic's material script colours (ambient/diffuse of gazebo.material).
-_GAZEBO_COLOURS: dict[str, tuple[float, float, float, float]] = {
-    "Gazebo/White": (1.0, 1.0, 1.0, 1.0),
-    "Gazebo/Black": (0.0, 0.0, 0.0, 1.0),
-    "Gazebo/Grey": (0.7, 0.7, 0.7, 1.0),
-    "Gazebo/Gray": (0.7, 0.7, 0.7, 1.0),
-    "Gazebo/DarkGrey": (0.35, 0.35, 0.35, 1.0),
-    "Gazebo/DarkGray": (0.35, 0.35, 0.35, 1.0),
-    "Gazebo/Red": (1.0, 0.0, 0.0, 1.0),
-    "Gazebo/Green": (0.0, 1.0, 0.0, 1.0),
-    "Gazebo/Blue": (0.0, 0.0, 1.0, 1.0),
-    "Gazebo/Yellow": (1.0, 1.0, 0.0, 1.0),
-    "Gazebo/Orange": (1.0, 0.5088, 0.0468, 1.0),
-    "Gazebo/Purple": (1.0, 0.0, 1.0, 1.0),
-    "Gazebo/Turquoise": (0.0, 1.0, 1.0, 1.0),
-    "Gazebo/SkyBlue": (0.13, 0.44, 0.70, 1.0),
-    "Gazebo/ZincYellow": (0.9725, 0.9529, 0.2078, 1.0),
-    "Gazebo/DarkYellow": (0.7, 0.7, 0.0, 1.0),
-    "Gazebo/Indigo": (0.33, 0.0, 0.5, 1.0),
-    "Gazebo/Wood": (0.51, 0.33, 0.16, 1.0),
-}
 
 
 def parse_p3d(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> OdometrySpec:
@@ -182,6 +163,31 @@ def _wheel_noise(
     return noise
 
 
+def _ros1_odometry_source(
+    reader: SdfReader, plugin: ET.Element, *, owner: str
+) -> Literal["world", "encoder"]:
+    """ROS 1 ``<odometrySource>``: exactly ``world`` or ``encoder``; anything else is world.
+
+    gazebo_ros_utils looks the text up in {encoder, world} (case-sensitive) and keeps the
+    default (world) with a warning when it does not match, numbers included.
+    """
+    found = plugin.find("odometrySource")
+    if found is None:
+        return "world"
+    text = (found.text or "").strip()
+    if text in ("world", "encoder"):
+        return "encoder" if text == "encoder" else "world"
+    meant = {"0": "encoder", "1": "world"}.get(text, text.lower())
+    hint = f" (the ROS 2 number {text} means {meant})" if text in ("0", "1") else ""
+    reader.warn(
+        found,
+        f"{owner}<odometrySource>{text}</odometrySource> is neither 'world' nor 'encoder'"
+        f"{hint}; like gazebo_ros (ROS 1) the odometry comes from the world. Write world or "
+        "encoder",
+    )
+    return "world"
+
+
 def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffDriveSpec:
     name = plugin.get("name") or "diff_drive"
     owner = f"plugin {name!r} (libgazebo_ros_diff_drive.so): "
@@ -216,22 +222,25 @@ def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffD
             return ros1_join(value) if value.startswith("/") else ros1_join(ns, value)
 
         publish_tf = reader.boolean(plugin, "publishTf", True, owner=owner)
-        source = (reader.text(plugin, "odometrySource") or "world").lower()
-        if source not in ("world", "encoder", "1", "0"):
-            raise reader.error(
-                plugin,
-                f"{owner}odometrySource {source!r} is not world/encoder",
-                "write world or encoder",
-            )
+        source = _ros1_odometry_source(reader, plugin, owner=owner)
         reader.unknown(
             plugin, (*_DIFF_ROS1, *WHEEL_NOISE_TAGS), owner=owner, what="the diff drive plugin"
         )
-        for tag in ("publishWheelJointState",):
-            if reader.boolean(plugin, tag, False, owner=owner):
-                reader.warn(
-                    plugin,
-                    f"{owner}<{tag}> is not supported; use libgazebo_ros_joint_state_publisher.so",
-                )
+        legacy = reader.boolean(plugin, "legacyMode", False, owner=owner)
+        if legacy:
+            reader.warn(
+                plugin,
+                f"{owner}<legacyMode>true swaps the left and right wheel speeds (the kinetic "
+                "plugin's legacy behaviour; melodic and noetic ignore the element): a positive "
+                "angular.z turns the robot clockwise unless the joints are swapped too",
+            )
+        level = (reader.text(plugin, "rosDebugLevel") or "na").lower()
+        if level not in ("na", "debug", "info", "warn", "error", "fatal"):
+            reader.warn(
+                plugin,
+                f"{owner}<rosDebugLevel> {level!r} is not one of na, Debug, Info, Warn, Error, "
+                "Fatal; like gazebo_ros it is ignored",
+            )
         return DiffDriveSpec(
             plugin_name=name, left_joints=joints("leftJoint"), right_joints=joints("rightJoint"),
             wheel_separation=(reader.number(plugin, "wheelSeparation", 0.34, owner=owner,
@@ -250,11 +259,14 @@ def parse_diff_drive(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> DiffD
             publish_odom_tf=publish_tf and reader.boolean(plugin, "publishOdomTF", True,
                                                           owner=owner),
             publish_wheel_tf=reader.boolean(plugin, "publishWheelTF", False, owner=owner),
-            odometry_source="encoder" if source in ("encoder", "0") else "world",
+            odometry_source=source,
             update_rate=reader.number(plugin, "updateRate", 100.0, owner=owner, minimum=0.0),
-            odometry_noise=_wheel_noise(reader, plugin, owner=owner,
-                                        encoder=source in ("encoder", "0")),
+            odometry_noise=_wheel_noise(reader, plugin, owner=owner, encoder=source == "encoder"),
             ros_version=1,
+            publish_wheel_joint_state=reader.boolean(plugin, "publishWheelJointState", False,
+                                                     owner=owner),
+            joint_states_topic=ros1_join(ns, "joint_states"),
+            legacy_mode=legacy,
         )  # fmt: skip
     node = plugin_node(reader, plugin, owner=owner)
     pairs = int(reader.number(plugin, "num_wheel_pairs", 1.0, owner=owner, minimum=1.0))
@@ -405,6 +417,28 @@ def parse_quadrotor(reader: SdfReader, plugin: ET.Element, urdf: Urdf) -> Quadro
     )
 
 
+def _value(element: ET.Element) -> str:
+    """A URDF ``<gazebo>`` key's value: the ``value=`` attribute first, as sdformat reads it."""
+    attribute = element.get("value")
+    return (attribute if attribute is not None else element.text or "").strip()
+
+
+def _friction(reader: SdfReader, element: ET.Element, *, owner: str) -> float:
+    """``<mu1>``/``<mu2>`` from its text or ``value=`` attribute: a number >= 0."""
+    raw = _value(element)
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value < 0.0:
+        raise reader.error(
+            element,
+            f"{owner}<{element.tag}> {raw!r} is not a friction coefficient (a number >= 0)",
+            f'write <{element.tag}>1.0</{element.tag}> or <{element.tag} value="1.0"/>',
+        )
+    return value
+
+
 def link_properties(reader: SdfReader, element: ET.Element, link: str) -> LinkProperties | None:
     owner = f"gazebo reference {link!r}: "
     rgba: tuple[float, float, float, float] | None = None
@@ -414,18 +448,18 @@ def link_properties(reader: SdfReader, element: ET.Element, link: str) -> LinkPr
         if child.tag == "sensor":
             continue
         if child.tag == "material":
-            text = (child.text or "").strip()
-            if text in _GAZEBO_COLOURS:
-                rgba = _GAZEBO_COLOURS[text]
+            text = _value(child)
+            if text in GAZEBO_COLOURS:
+                rgba = GAZEBO_COLOURS[text]
                 touched = True
             else:
                 reader.warn(
                     child,
                     f"{owner}Gazebo material {text!r} is not known; the URDF "
-                    f"colour is kept (known: {', '.join(_GAZEBO_COLOURS)})",
+                    f"colour is kept (known: {', '.join(GAZEBO_COLOURS)})",
                 )
         elif child.tag in ("mu1", "mu2"):
-            value = reader.number(element, child.tag, 1.0, owner=owner, minimum=0.0)
+            value = _friction(reader, child, owner=owner)
             if child.tag == "mu1":
                 mu1 = value
             else:

@@ -334,13 +334,9 @@ def _camera_ros1(
             )
         else:
             spec["distortion"] = plugin_distortion
-    rate = reader.number(plugin, "updateRate", 0.0, owner=owner, minimum=0.0)
-    if rate and rate != spec["update_rate"]:
-        reader.warn(
-            plugin,
-            f"{owner}plugin <updateRate> {rate:g} differs from the sensor's "
-            f"<update_rate> {spec['update_rate']}; frames follow the sensor's",
-        )
+    # gazebo_ros_camera_utils: <updateRate> throttles what the plugin publishes of the
+    # sensor's frames (0 = every frame the sensor makes, at its <update_rate>)
+    spec["plugin_update_rate"] = reader.number(plugin, "updateRate", 0.0, owner=owner, minimum=0.0)
     if kind == "depth":
         spec["depth_topic"] = topic("depthImageTopicName", "depth/image_raw")
         spec["depth_info_topic"] = topic("depthImageCameraInfoTopicName", "depth/camera_info")

@@ -23,9 +23,16 @@ class SdfReader:
         self.warnings: list[str] = []
 
     def warn(self, element: ET.Element, text: str) -> None:
+        """Record ``"file:line: <tag>: text"`` about ``element`` (where it was written).
+
+        Kept in :attr:`warnings`; :func:`visnav.description.robot.load_robot` logs one
+        grouped summary of them (:mod:`visnav.description.warning_summary`), which puts
+        an ignored ``<sensor>`` / ``<plugin>`` ("... is ignored", "nothing is
+        published") first.
+        """
         message = f"{self.doc.where(element)}: <{element.tag}>: {text}"
         self.warnings.append(message)
-        _LOG.warning("%s", message)
+        _LOG.debug("%s", message)  # the loader logs one summary of them all
 
     def error(self, element: ET.Element, what: str, fix: str) -> RobotDescriptionError:
         return self.doc.error(element, what, fix)

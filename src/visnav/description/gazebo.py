@@ -29,13 +29,16 @@ resolves the exact topic names and frame ids the plugins publish:
 * ``<sensor type="imu">`` + ``libgazebo_ros_imu_sensor.so``: ``~/out``
   (``<ns>/<plugin name>/out``) in ROS 2, ``<robotNamespace>/<topicName>`` in ROS 1.
 * ``libgazebo_ros_joint_state_publisher.so``: ``joint_states``.
+* ``libgazebo_ros_imu.so`` (ROS 1 model plugin), ``libgazebo_ros_skid_steer_drive.so`` and
+  ``libgazebo_ros_planar_move.so``: see :mod:`visnav.description._gazebo_bases`.
 * ``libvisnav_quadrotor.so`` (visnav's own, no Gazebo counterpart): the vehicle
   limits of :class:`~visnav.sim.vehicles.quadrotor.QuadrotorParams` as child
   elements, ``<body_name>`` (default the root link), and the command topics
   ``command/trajectory`` and ``command/pose`` in its ``<ros>`` namespace.
 
 Every element or plugin visnav does not model produces a warning naming it
-(returned in :attr:`GazeboExtensions.warnings` and logged). Bad values (a
+and the file and line where it is written (returned in :attr:`GazeboExtensions.warnings`;
+:func:`~visnav.description.robot.load_robot` logs one grouped summary). Bad values (a
 sensor on a link that does not exist, zero image width, an hfov outside
 (0, pi), a p3d ``body_name`` that is not a link ...) raise
 :class:`~visnav.description.urdf.RobotDescriptionError` naming the file, line, element
@@ -55,7 +58,9 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import cast
 
+from visnav.description._gazebo_bases import parse_imu_model, parse_planar_move, parse_skid_steer
 from visnav.description._gazebo_plugins import (
     link_properties,
     parse_diff_drive,
@@ -63,20 +68,27 @@ from visnav.description._gazebo_plugins import (
     parse_p3d,
     parse_quadrotor,
 )
+from visnav.description._gazebo_rays import RAY_SENSOR_TYPES, parse_ray
 from visnav.description._gazebo_sensors import parse_camera, parse_imu
+from visnav.description._ros_control import parse_ros_control
 from visnav.description._sdf_reader import SdfReader
 from visnav.description.gazebo_specs import (
     CameraSpec,
     DiffDriveSpec,
     GaussianNoise,
     GazeboExtensions,
+    ImuModelSpec,
     ImuSpec,
     JointStatePublisherSpec,
     LensDistortion,
     LinkProperties,
     OdometrySpec,
+    PlanarMoveSpec,
     QuadrotorSpec,
+    RaySpec,
+    RosControlSpec,
     RosNodeNames,
+    SkidSteerSpec,
     default_principal_point,
     ros1_join,
     tf_resolve,
@@ -121,10 +133,13 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
     reader = SdfReader(urdf.doc)
     cameras: list[CameraSpec] = []
     imus: list[ImuSpec] = []
+    rays: list[RaySpec] = []
     odometry: list[OdometrySpec] = []
     drives: list[DiffDriveSpec] = []
     jsps: list[JointStatePublisherSpec] = []
     quads: list[QuadrotorSpec] = []
+    ros_controls: list[RosControlSpec] = []
+    bases: dict[type, list[object]] = {ImuModelSpec: [], SkidSteerSpec: [], PlanarMoveSpec: []}
     p3d_elements: list[ET.Element] = []
     props: dict[str, LinkProperties] = {}
     handlers: dict[str, Callable[[SdfReader, ET.Element, Urdf], object]] = {
@@ -132,6 +147,10 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
         "libgazebo_ros_diff_drive.so": parse_diff_drive,
         "libgazebo_ros_joint_state_publisher.so": parse_joint_state_publisher,
         "libvisnav_quadrotor.so": parse_quadrotor,
+        "libgazebo_ros_control.so": parse_ros_control,
+        "libgazebo_ros_imu.so": parse_imu_model,
+        "libgazebo_ros_skid_steer_drive.so": parse_skid_steer,
+        "libgazebo_ros_planar_move.so": parse_planar_move,
     }
     for block in urdf.gazebo:
         element = block.element
@@ -159,6 +178,10 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
                         jsps.append(result)
                     elif isinstance(result, QuadrotorSpec):
                         quads.append(result)
+                    elif isinstance(result, RosControlSpec):
+                        ros_controls.append(result)
+                    elif type(result) in bases:
+                        bases[type(result)].append(result)
                 elif child.tag == "sensor":
                     raise reader.error(
                         child,
@@ -213,13 +236,15 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
                 cameras.append(parse_camera(reader, sensor, ref, "depth", urdf.name))
             elif kind == "imu":
                 imus.append(parse_imu(reader, sensor, ref, urdf.name))
+            elif kind in RAY_SENSOR_TYPES:
+                rays.append(parse_ray(reader, sensor, ref, urdf.name))
             else:
                 reader.warn(
                     sensor,
                     f"sensor {sensor.get('name')!r} of type {kind!r} is not "
-                    "supported (camera, depth and imu are) and is ignored",
+                    "supported (camera, depth, imu and ray are) and is ignored",
                 )
-    _check_unique(reader, urdf, cameras, imus)
+    _check_unique(urdf, [*cameras, *imus, *rays])
     odometry = _p3d_tf_without_second_parent(reader, odometry, p3d_elements, drives)
     if len(quads) > 1:
         raise RobotDescriptionError(
@@ -227,9 +252,12 @@ def parse_gazebo_extensions(urdf: Urdf) -> GazeboExtensions:
             'one controller. Fix: keep one <plugin filename="libvisnav_quadrotor.so">'
         )
     return GazeboExtensions(
-        cameras=tuple(cameras), imus=tuple(imus), odometry=tuple(odometry),
+        cameras=tuple(cameras), imus=tuple(imus), rays=tuple(rays), odometry=tuple(odometry),
         diff_drives=tuple(drives), joint_state_publishers=tuple(jsps), quadrotors=tuple(quads),
-        link_properties=props, warnings=tuple(reader.warnings),
+        link_properties=props, warnings=tuple(reader.warnings), ros_control=tuple(ros_controls),
+        imu_plugins=tuple(cast("list[ImuModelSpec]", bases[ImuModelSpec])),
+        skid_steer_drives=tuple(cast("list[SkidSteerSpec]", bases[SkidSteerSpec])),
+        planar_moves=tuple(cast("list[PlanarMoveSpec]", bases[PlanarMoveSpec])),
     )  # fmt: skip
 
 
@@ -267,11 +295,8 @@ def _p3d_tf_without_second_parent(
     return out
 
 
-def _check_unique(
-    reader: SdfReader, urdf: Urdf, cameras: Sequence[CameraSpec], imus: Sequence[ImuSpec]
-) -> None:
+def _check_unique(urdf: Urdf, specs: Sequence[CameraSpec | ImuSpec | RaySpec]) -> None:
     seen: dict[str, str] = {}
-    specs: list[CameraSpec | ImuSpec] = [*cameras, *imus]
     for spec in specs:
         if spec.name in seen:
             raise RobotDescriptionError(
@@ -279,4 +304,3 @@ def _check_unique(
                 f" and {spec.link!r}). Fix: give every <sensor> a unique name"
             )
         seen[spec.name] = spec.link
-    del reader

@@ -23,13 +23,18 @@ __all__ = [
     "DiffDriveSpec",
     "GaussianNoise",
     "GazeboExtensions",
+    "ImuModelSpec",
     "ImuSpec",
     "JointStatePublisherSpec",
     "LensDistortion",
     "LinkProperties",
     "OdometrySpec",
+    "PlanarMoveSpec",
     "QuadrotorSpec",
+    "RosControlSpec",
     "RosNodeNames",
+    "SkidSteerSpec",
+    "TransmissionSpec",
     "default_principal_point",
     "normalize_namespace",
     "ros1_join",
@@ -186,6 +191,10 @@ class CameraSpec:
     plugin: str | None = None
     plugin_name: str | None = None
     ros_version: Literal[1, 2] | None = None
+    plugin_update_rate: float = 0.0
+    """ROS 1 ``<updateRate>`` of the plugin (Hz, 0 = none): throttles publishing below the
+    sensor's ``update_rate`` as gazebo_ros_camera_utils does; frames are rendered only when
+    both are due."""
 
     def k(self) -> tuple[float, ...]:
         """Row-major 3x3 camera matrix K as published in ``CameraInfo.k``."""
@@ -273,6 +282,11 @@ class DiffDriveSpec:
     covariance: tuple[float, float, float] = (0.00001, 0.00001, 0.001)
     odometry_noise: WheelOdometryNoise = field(default_factory=WheelOdometryNoise)
     ros_version: Literal[1, 2] = 2
+    publish_wheel_joint_state: bool = False
+    """ROS 1 ``publishWheelJointState``: wheel positions on ``joint_states_topic``."""
+    joint_states_topic: str = "/joint_states"
+    legacy_mode: bool = False
+    """ROS 1 (kinetic) ``legacyMode``: left and right wheel speeds swapped."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -306,6 +320,195 @@ class QuadrotorSpec:
     pose_topic: str = "/command/pose"
 
 
+@dataclass(frozen=True, kw_only=True)
+class ImuModelSpec:
+    """``libgazebo_ros_imu.so`` (ROS 1 model plugin): ``sensor_msgs/Imu`` of a link.
+
+    As gazebo_ros_imu: the orientation is the link's in the world with ``rpy_offset``
+    applied; angular velocity and the linear acceleration (the link velocity's finite
+    difference, gravity not included) are expressed in the link frame, each with
+    ``gaussian_noise``; every covariance diagonal is its square. ``update_rate`` 0 = every
+    physics step. ``service`` is the ``std_srvs/Empty`` calibration service (always succeeds).
+    """
+
+    plugin_name: str
+    body_name: str
+    frame_id: str = ""
+    topic: str | None = "/default_imu"
+    service: str | None = "/default_imu"
+    update_rate: float = 0.0
+    gaussian_noise: float = 0.0
+    xyz_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SkidSteerSpec:
+    """``libgazebo_ros_skid_steer_drive.so`` (ROS 1): four driven wheels, ``cmd_vel`` in.
+
+    Both wheels of a side turn at ``v -/+ w * wheel_separation / 2`` (left / right);
+    odometry is the model's world pose (always published), its TF only with
+    ``broadcast_tf``.
+    """
+
+    plugin_name: str
+    left_front_joint: str
+    right_front_joint: str
+    left_rear_joint: str
+    right_rear_joint: str
+    wheel_separation: float = 0.4
+    wheel_diameter: float = 0.15
+    torque: float = 5.0
+    command_topic: str = "/cmd_vel"
+    odometry_topic: str = "/odom"
+    odometry_frame: str = "odom"
+    robot_base_frame: str = "base_footprint"
+    broadcast_tf: bool = False
+    update_rate: float = 100.0
+    covariance: tuple[float, float, float] = (0.0001, 0.0001, 0.01)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanarMoveSpec:
+    """``libgazebo_ros_planar_move.so``: ``cmd_vel`` sets the model's planar velocity.
+
+    ``linear.x``, ``linear.y`` (body frame) and ``angular.z`` are applied directly to the
+    model every ``update_rate`` (ROS 1: every step); odometry (the model's world pose) on
+    ``odometry_topic`` and ``odometry_frame -> robot_base_frame`` on TF at ``odometry_rate``.
+    ``cmd_timeout`` >= 0 (ROS 1 ``cmdTimeout``) stops the model when no command came for
+    that long.
+    """
+
+    plugin_name: str
+    command_topic: str = "/cmd_vel"
+    odometry_topic: str = "/odom"
+    odometry_frame: str = "odom"
+    robot_base_frame: str = "base_footprint"
+    update_rate: float = 0.0
+    odometry_rate: float = 20.0
+    publish_odom: bool = True
+    publish_odom_tf: bool = True
+    cmd_timeout: float = -1.0
+    covariance: tuple[float, float, float] = (0.00001, 0.00001, 0.001)
+    ros_version: Literal[1, 2] = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class TransmissionSpec:
+    """A URDF ``<transmission>`` as gazebo_ros_control's ``DefaultRobotHWSim`` reads it.
+
+    ``interface`` is the joint's first ``<hardwareInterface>`` (``hardware_interface/``
+    prefix dropped): ``VelocityJointInterface``, ``EffortJointInterface`` or
+    ``PositionJointInterface``. ``mechanical_reduction`` is kept for reference;
+    ``DefaultRobotHWSim`` (and visnav) command the joint directly.
+    """
+
+    name: str
+    joint: str
+    interface: Literal["VelocityJointInterface", "EffortJointInterface", "PositionJointInterface"]
+    mechanical_reduction: float = 1.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class RosControlSpec:
+    """``libgazebo_ros_control.so``: a ros_control controller manager for the robot.
+
+    ``robot_namespace`` (``<robotNamespace>``, default the robot's name) is where the
+    controller manager lives: controllers read their parameters and publish under
+    ``<robot_namespace>/<controller>``. ``control_period`` 0 means every physics step
+    (the plugin's default, the physics period). ``e_stop_topic`` (``std_msgs/Bool``)
+    zeroes every command while true. ``transmissions`` are the joints the hardware
+    interface offers, in URDF order.
+    """
+
+    plugin_name: str
+    robot_namespace: str
+    control_period: float = 0.0
+    robot_param: str = "robot_description"
+    e_stop_topic: str | None = None
+    transmissions: tuple[TransmissionSpec, ...] = ()
+
+
+@dataclass(frozen=True)
+class RayScan:
+    """One axis of a ray sensor's ``<scan>``: ``samples`` rays from ``min_angle`` to ``max_angle``.
+
+    ``resolution`` multiplies ``samples`` into the number of published ranges (Gazebo
+    interpolates between rays when it is not 1). Angles in radians.
+    """
+
+    samples: int = 1
+    resolution: float = 1.0
+    min_angle: float = 0.0
+    max_angle: float = 0.0
+
+    @property
+    def count(self) -> int:
+        """Ranges published along this axis (``int(samples * resolution)``, at least 1)."""
+        return max(1, int(self.samples * self.resolution))
+
+    @property
+    def step(self) -> float:
+        """Angle between published ranges (0 for a single one)."""
+        count = self.count
+        return (self.max_angle - self.min_angle) / (count - 1) if count > 1 else 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class RaySpec:
+    """A ray sensor (``ray``, ``gpu_ray``, ``lidar``, ``gpu_lidar``) and its gazebo_ros plugin.
+
+    ``flavor`` says which plugin's conventions the output follows:
+
+    * ``laser``: ROS 1 ``libgazebo_ros_laser.so`` / ``libgazebo_ros_gpu_laser.so``,
+      ``sensor_msgs/LaserScan`` of every ray (all vertical rows);
+    * ``ray_sensor``: ROS 2 ``libgazebo_ros_ray_sensor.so``, ``output`` one of
+      ``LaserScan`` (the middle vertical row), ``PointCloud2``, ``PointCloud``, ``Range``;
+    * ``velodyne``: velodyne_simulator's ``libgazebo_ros_velodyne_laser.so`` (and
+      ``_gpu_``), ``PointCloud2`` with x, y, z, intensity, ring, time;
+    * ``range``: ROS 1 ``libgazebo_ros_range.so``, ``sensor_msgs/Range``.
+
+    Ranges follow REP 117 as Gazebo's ray sensor does: no return within ``range_max``
+    is +inf, a return at or below ``range_min`` -inf (see :mod:`visnav.sim.lidar`).
+    ``topic`` is fully qualified (None when nothing is published); ``pose`` is the
+    sensor frame in the link frame; ``update_rate`` in Hz (0: every physics step).
+    """
+
+    name: str
+    link: str
+    pose: Origin = field(default_factory=Origin)
+    kind: str = "ray"
+    update_rate: float = 0.0
+    horizontal: RayScan = field(default_factory=lambda: RayScan(samples=640))
+    vertical: RayScan = field(default_factory=RayScan)
+    range_min: float = 0.0
+    range_max: float = 10.0
+    range_resolution: float = 0.0
+    noise: GaussianNoise = field(default_factory=GaussianNoise)
+    flavor: Literal["laser", "ray_sensor", "velodyne", "range"] | None = None
+    output: Literal["LaserScan", "PointCloud2", "PointCloud", "Range"] = "LaserScan"
+    topic: str | None = None
+    frame_id: str = ""
+    min_intensity: float = 0.0
+    """``ray_sensor``: intensities below it are raised to it; ``velodyne``: points below
+    it are dropped (default ``-inf``, no filtering)."""
+    plugin_min_range: float = 0.0
+    """``velodyne`` ``<min_range>``: points at or below it (or ``range_min``) are dropped."""
+    plugin_max_range: float = math.inf
+    """``velodyne`` ``<max_range>``: points at or beyond it (or ``range_max``) are dropped."""
+    gaussian_noise: float = 0.0
+    """``velodyne`` / ``range`` plugin noise (stddev, m), added by the plugin."""
+    organize_cloud: bool = False
+    """``velodyne``: keep dropped points as NaN (width = vertical rays, height = azimuths)."""
+    radiation_type: int = 0
+    """``Range.radiation_type``: 0 ULTRASOUND, 1 INFRARED."""
+    field_of_view: float = 0.0
+    """``Range.field_of_view`` (rad)."""
+    plugin: str | None = None
+    plugin_name: str | None = None
+    ros_version: Literal[1, 2] | None = None
+
+
 @dataclass(frozen=True)
 class LinkProperties:
     """``<gazebo reference="link">`` surface properties visnav applies."""
@@ -327,3 +530,8 @@ class GazeboExtensions:
     quadrotors: tuple[QuadrotorSpec, ...] = ()
     link_properties: Mapping[str, LinkProperties] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    imu_plugins: tuple[ImuModelSpec, ...] = ()
+    skid_steer_drives: tuple[SkidSteerSpec, ...] = ()
+    planar_moves: tuple[PlanarMoveSpec, ...] = ()
+    ros_control: tuple[RosControlSpec, ...] = ()
+    rays: tuple[RaySpec, ...] = ()

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from visnav.description.gazebo import GazeboExtensions, parse_gazebo_extensions
 from visnav.description.urdf import RobotDescriptionError, Urdf, find_package, parse_urdf
+from visnav.description.warning_summary import log_warning_summary
+from visnav.description.xacro_locations import display_path, locating_xacro, strip_locations
 from visnav.textfile import read_text
 
 __all__ = ["RobotDescription", "expand_xacro", "load_robot"]
@@ -137,13 +139,30 @@ def expand_xacro(
             Xacro's reason; an include cycle is named as such), or, with
             ``strict_args``, an unknown argument (the known ones are listed).
     """
+    return _run_xacro(source, args=args, packages=packages, text=text, strict_args=strict_args)[0]
+
+
+def _run_xacro(
+    source: str | Path,
+    *,
+    args: Mapping[str, str] | None,
+    packages: Mapping[str, Path | str] | None,
+    text: str | None,
+    strict_args: bool,
+) -> tuple[str, str]:
+    """:func:`expand_xacro`, returning the XML and the XML with source locations.
+
+    The second text carries each element's ``file:line`` (see
+    :mod:`visnav.description.xacro_locations`) for :func:`parse_urdf`; the first is
+    the document Xacro produces, to publish.
+    """
     import xacro  # noqa: PLC0415 - optional heavy import
 
     path = Path(source)
     base_dir = path.resolve().parent if text is None else None
     mappings = {str(k): str(v) for k, v in (args or {}).items()}
     table = _ArgTable(mappings)
-    with _XACRO_LOCK, _xacro_find(base_dir, packages):
+    with _XACRO_LOCK, _xacro_find(base_dir, packages), locating_xacro(display_path(source)):
         try:
             if text is None:
                 doc = xacro.process_file(str(path), mappings=table)
@@ -170,10 +189,12 @@ def expand_xacro(
                 f"given: {mappings or 'none'}"
             )
             raise RobotDescriptionError(msg) from exc
+        located: str = doc.toxml()
+        strip_locations(doc)
         xml: str = doc.toxml()
     if strict_args:
         _check_args(source, table)
-    return xml
+    return xml, located
 
 
 def _is_xacro(text: str, path: Path | None) -> bool:
@@ -198,7 +219,7 @@ def load_robot(
 
     Returns:
         The description with its Gazebo sensors and plugins and every warning
-        (each warning is also logged).
+        (logged as one grouped summary, :mod:`visnav.description.warning_summary`).
 
     Raises:
         RobotDescriptionError: unreadable file, Xacro failure, malformed URDF,
@@ -214,7 +235,7 @@ def load_robot(
         source = "<string>"
     warnings: list[str] = []
     if _is_xacro(text, path):
-        xml = expand_xacro(
+        xml, located = _run_xacro(
             path if path is not None else source,
             args=args,
             packages=packages,
@@ -222,13 +243,18 @@ def load_robot(
             strict_args=True,
         )
     else:
-        xml = text
+        xml = located = text
         if args:
             message = f"{source}: arguments {dict(args)} given but the file is not Xacro; ignored"
             warnings.append(message)
-            _LOG.warning("%s", message)
     base_dir = path.resolve().parent if path is not None else None
-    urdf = parse_urdf(xml, source=source, base_dir=base_dir, packages=packages)
+    urdf = parse_urdf(located, source=source, base_dir=base_dir, packages=packages)
     gazebo = parse_gazebo_extensions(urdf)
     warnings += [*urdf.warnings, *gazebo.warnings]
+    log_warning_summary(
+        warnings,
+        subject=f"robot {urdf.name!r} ({display_path(source)})",
+        base_dir=display_path(path.parent) if path is not None else None,
+        logger=_LOG,
+    )
     return RobotDescription(urdf=urdf, gazebo=gazebo, xml=xml, warnings=tuple(warnings))

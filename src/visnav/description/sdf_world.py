@@ -1,18 +1,24 @@
-"""A subset of SDF worlds, for users coming from Gazebo.
+"""SDF worlds, for users coming from Gazebo (Classic): the subset visnav builds.
 
 Supported (everything else produces a :class:`~visnav.description.errors.WorldWarning`
-naming the element and its line, and is skipped):
+naming the element and its file and line, and is skipped):
 
 * ``<sdf><world>`` (or a bare ``<sdf><model>``);
-* ``<include><uri>model://ground_plane</uri></include>`` (a 100 x 100 m ground)
-  and ``<include><uri>model://sun</uri></include>`` (Gazebo's sun: a directional
-  light pointing along (-0.5, 0.1, -0.9));
-* ``<model>`` with ``<pose>``, ``<static>``, ``<link>`` (``<pose>``), and per link
-  ``<visual>`` / ``<collision>`` (``<pose>``, ``<geometry>`` with ``<box><size>``,
-  ``<cylinder><radius><length>``, ``<sphere><radius>``, ``<plane>`` (becomes the
-  ground) and ``<mesh><uri><scale>`` for ``file://`` or relative paths),
-  ``<material>`` with ``<diffuse>`` or ``<ambient>``, or a
-  ``<script><name>Gazebo/Colour</name>`` of the common Gazebo colours;
+* ``<include>`` with ``<uri>``, ``<name>``, ``<pose>``, ``<static>``, in the world and in
+  models (nested): ``model://NAME`` is found on Gazebo's model path (``GAZEBO_MODEL_PATH``,
+  the ``gazebo_model_path`` exports of ROS packages, ``~/.gazebo/models``; see
+  :mod:`visnav.description.model_path` and :mod:`visnav.description.sdf_include`);
+  ``model://ground_plane`` and ``model://sun`` not on the path are Gazebo's (a 100 x 100 m
+  ground; a directional light along (-0.5, 0.1, -0.9)). Models that are not found are
+  one error listing them all, or (``skip_missing_models``) one warning;
+* ``<model>`` with ``<pose>``, ``<static>``, nested ``<model>`` (named ``outer::inner``),
+  ``<link>`` (``<pose>``), and per link ``<visual>`` / ``<collision>`` (``<pose>``,
+  ``<geometry>`` with ``<box><size>``, ``<cylinder><radius><length>``,
+  ``<sphere><radius>``, ``<plane>`` (becomes the ground) and ``<mesh><uri><scale>``:
+  Collada, OBJ, STL or MSH by ``model://``, ``file://``, ``package://`` or a path),
+  ``<material>`` with ``<diffuse>`` or ``<ambient>``, or a ``<script>`` (Gazebo's
+  ``gazebo.material`` colours, or a model's own ``.material`` files); a mesh visual
+  without a material keeps the file's own colours;
 * ``<light>`` (directional, point, spot) with ``<pose>``, ``<diffuse>``,
   ``<specular>``, ``<direction>``, ``<attenuation>``, ``<spot><outer_angle>``;
 * ``<physics><max_step_size>`` and ``<gravity>``; ``<scene><ambient>``.
@@ -21,24 +27,26 @@ A visual and a collision of one link with the same geometry and pose become one
 shape; other visuals are visual-only and other collisions collision-only.
 Models that are not ``<static>`` are placed as static geometry (with a warning):
 visnav worlds hold no free bodies. ``<pose relative_to=...>`` other than the
-parent frame is not supported. Shadows are always off.
+parent frame is not supported. Shadows are always off. An empty value (``<pose/>``,
+``<size></size>``) is a warning and SDFormat's default, as Gazebo reads it.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-from xml.parsers import expat
 
 import numpy as np
 
-from visnav.description.errors import WorldError, WorldWarning
-from visnav.description.rigid import rpy_to_matrix
-from visnav.description.world_yaml import mesh_bounds
+from visnav.description.errors import MeshFileError, WorldError
+from visnav.description.mesh_files import MeshData, load_mesh
+from visnav.description.model_path import ModelPath
+from visnav.description.model_path import model_path as find_model_path
+from visnav.description.sdf_document import Pose, SdfReader, compose, rpy_of
+from visnav.description.sdf_include import SdfResources, missing_models_error
 from visnav.description.worldmodel import (
     Box,
     Cylinder,
@@ -53,33 +61,16 @@ from visnav.description.worldmodel import (
 from visnav.textfile import read_text
 
 if TYPE_CHECKING:
+    import os
+    from collections.abc import Callable, Mapping
+
     import numpy.typing as npt
 
     from visnav.description.worldmodel import Shape
 
 __all__ = ["load_sdf_world", "parse_sdf_world"]
 
-# Gazebo's classic material scripts (gazebo/media/materials/scripts/gazebo.material),
-# diffuse colours rounded.
-_GAZEBO_COLOURS: dict[str, tuple[float, float, float, float]] = {
-    "Gazebo/Grey": (0.7, 0.7, 0.7, 1.0),
-    "Gazebo/DarkGrey": (0.35, 0.35, 0.35, 1.0),
-    "Gazebo/White": (1.0, 1.0, 1.0, 1.0),
-    "Gazebo/FlatBlack": (0.1, 0.1, 0.1, 1.0),
-    "Gazebo/Black": (0.0, 0.0, 0.0, 1.0),
-    "Gazebo/Red": (1.0, 0.0, 0.0, 1.0),
-    "Gazebo/Green": (0.0, 1.0, 0.0, 1.0),
-    "Gazebo/Blue": (0.0, 0.0, 1.0, 1.0),
-    "Gazebo/Yellow": (1.0, 1.0, 0.0, 1.0),
-    "Gazebo/Orange": (1.0, 0.5, 0.0, 1.0),
-    "Gazebo/Purple": (1.0, 0.0, 1.0, 1.0),
-    "Gazebo/Turquoise": (0.0, 1.0, 1.0, 1.0),
-    "Gazebo/Wood": (0.6, 0.45, 0.3, 1.0),
-    "Gazebo/Bricks": (0.6, 0.3, 0.25, 1.0),
-}
 _DEFAULT_RGBA = (0.7, 0.7, 0.7, 1.0)
-
-_Pose = tuple["npt.NDArray[np.float64]", "npt.NDArray[np.float64]"]  # (rotation 3x3, translation 3)
 
 
 @dataclass
@@ -91,127 +82,15 @@ class _Parsed:
     headlight: dict[str, Any]
 
 
-class _SdfReader:
-    def __init__(self, source: str, base_dir: Path | None) -> None:
-        self.source = source
-        self.base_dir = base_dir
-        self.lines: dict[int, int] = {}
-        self.warnings: list[str] = []
-
-    def where(self, element: ET.Element) -> str:
-        line = self.lines.get(id(element))
-        return f"{self.source}:{line}" if line is not None else self.source
-
-    def warn(self, element: ET.Element, text: str) -> None:
-        message = f"{self.where(element)}: <{element.tag}>: {text}"
-        self.warnings.append(message)
-        warnings.warn(message, WorldWarning, stacklevel=4)
-
-    def error(self, element: ET.Element, text: str) -> WorldError:
-        return WorldError(f"{self.where(element)}: <{element.tag}>: {text}")
-
-    def parse(self, text: str) -> ET.Element:
-        builder = ET.TreeBuilder()
-        parser = expat.ParserCreate()
-
-        def start(tag: str, attrs: dict[str, str]) -> None:
-            self.lines[id(builder.start(tag, attrs))] = parser.CurrentLineNumber
-
-        parser.StartElementHandler = start
-        parser.EndElementHandler = builder.end
-        parser.CharacterDataHandler = builder.data
-        try:
-            parser.Parse(text, True)
-        except expat.ExpatError as exc:
-            msg = (
-                f"{self.source}:{exc.lineno}: malformed SDF (XML): "
-                f"{expat.errors.messages[exc.code]} at column {exc.offset + 1}; fix the XML syntax"
-            )
-            raise WorldError(msg) from None
-        root: ET.Element = builder.close()
-        return root
-
-    # values ---------------------------------------------------------------
-
-    def floats(self, element: ET.Element, n: int) -> tuple[float, ...]:
-        text = (element.text or "").split()
-        try:
-            values = tuple(float(v) for v in text)
-        except ValueError:
-            raise self.error(element, f"expected {n} numbers, got {element.text!r}") from None
-        if len(values) != n or not all(math.isfinite(v) for v in values):
-            raise self.error(element, f"expected {n} finite numbers, got {element.text!r}")
-        return values
-
-    def child_floats(
-        self, parent: ET.Element, tag: str, n: int, default: tuple[float, ...] | None = None
-    ) -> tuple[float, ...]:
-        element = parent.find(tag)
-        if element is None:
-            if default is None:
-                raise self.error(parent, f"missing <{tag}>")
-            return default
-        return self.floats(element, n)
-
-    def boolean(self, element: ET.Element | None, default: bool) -> bool:
-        if element is None:
-            return default
-        text = (element.text or "").strip().lower()
-        if text in ("1", "true"):
-            return True
-        if text in ("0", "false"):
-            return False
-        raise self.error(element, f"expected true/false/1/0, got {element.text!r}")
-
-    def pose(self, parent: ET.Element) -> _Pose:
-        element = parent.find("pose")
-        if element is None:
-            return np.eye(3), np.zeros(3)
-        relative = element.get("relative_to")
-        if relative:
-            self.warn(
-                element, f"relative_to={relative!r} is not supported; read as the parent frame"
-            )
-        x, y, z, r, p, yaw = self.floats(element, 6)
-        return rpy_to_matrix((r, p, yaw)), np.array([x, y, z])
-
-    def colour(self, element: ET.Element) -> tuple[float, float, float, float]:
-        values = (element.text or "").split()
-        try:
-            rgba = [float(v) for v in values]
-        except ValueError:
-            raise self.error(element, f"expected r g b [a], got {element.text!r}") from None
-        if len(rgba) == 3:
-            rgba.append(1.0)
-        if len(rgba) != 4:
-            raise self.error(element, f"expected r g b [a], got {element.text!r}")
-        r, g, b, a = (min(max(v, 0.0), 1.0) for v in rgba)
-        return (r, g, b, a)
-
-
-def _compose(a: _Pose, b: _Pose) -> _Pose:
-    return a[0] @ b[0], a[0] @ b[1] + a[1]
-
-
-def _rpy(rot: npt.NDArray[np.float64]) -> tuple[float, float, float]:
-    """Fixed-axis roll, pitch, yaw of a rotation matrix (inverse of rpy_to_matrix)."""
-    pitch = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
-    if abs(rot[2, 0]) < 1.0 - 1e-9:
-        roll = math.atan2(rot[2, 1], rot[2, 2])
-        yaw = math.atan2(rot[1, 0], rot[0, 0])
-    else:
-        roll = 0.0
-        yaw = math.atan2(-rot[0, 1], rot[1, 1])
-    return (roll, pitch, yaw)
-
-
 class _WorldParser:
-    def __init__(self, reader: _SdfReader) -> None:
+    def __init__(self, reader: SdfReader, resources: SdfResources) -> None:
         self.r = reader
+        self.res = resources
+        self.meshes: dict[str, MeshData] = {}
         self.out = _Parsed(shapes=[], lights=[], ground=None, physics={}, headlight={})
 
     def world(self, world: ET.Element) -> None:
-        handlers = {
+        handlers: dict[str, Callable[[ET.Element], None]] = {
             "include": self.include,
             "model": self.model,
             "light": self.light,
@@ -226,38 +105,71 @@ class _WorldParser:
             else:
                 handler(child)
 
-    def include(self, element: ET.Element) -> None:
+    def include(
+        self,
+        element: ET.Element,
+        parent: Pose | None = None,
+        scope: str = "",
+        *,
+        static: bool = False,
+    ) -> None:
         uri = (element.findtext("uri") or "").strip()
+        for child in element:
+            if child.tag not in ("uri", "name", "pose", "static", "plugin"):
+                self.r.warn(child, "include setting not supported; skipped")
+        if not uri:
+            self.r.warn(element, "<include> without a <uri>; skipped")
+            return
+        included = self.res.include(element, uri, self.r.base_dir, self.r.where(element))
+        if included is None:
+            if uri.rstrip("/") in ("model://ground_plane", "model://sun"):
+                self._builtin(uri.rstrip("/"), element, parent)
+            return
+        saved = self.r.base_dir
+        self.r.base_dir = included.base_dir
+        try:
+            with self.res.nested():
+                top = included.element
+                if top.tag == "model":
+                    self.model(top, parent, scope=scope, static=static)
+                elif top.tag == "light":
+                    self.light(top)
+                else:
+                    self.r.warn(top, "actors are not simulated; skipped")
+        finally:
+            self.r.base_dir = saved
+
+    def _builtin(self, uri: str, element: ET.Element, parent: Pose | None) -> None:
+        """Gazebo's own ground_plane and sun, when no model directory provides them."""
+        rot, pos = self.r.pose(element)
+        if parent is not None:
+            rot, pos = compose(parent, (rot, pos))
         if uri == "model://ground_plane":
-            self.out.ground = Ground(size=(100.0, 100.0), rgba=(0.8, 0.8, 0.8, 1.0))
-        elif uri == "model://sun":
-            self.out.lights.append(
-                Light(
-                    name=f"sun_{len(self.out.lights)}",
-                    kind="directional",
-                    pos=(0.0, 0.0, 10.0),
-                    dir=(-0.5, 0.1, -0.9),
-                    diffuse=(0.8, 0.8, 0.8),
-                    specular=(0.2, 0.2, 0.2),
-                )
+            self.out.ground = Ground(
+                size=(100.0, 100.0), z=float(pos[2]), rgba=(0.8, 0.8, 0.8, 1.0)
             )
-        else:
-            self.r.warn(
-                element,
-                f"include of {uri!r} is not supported (only model://ground_plane and "
-                "model://sun); inline the model's <model> in the world file",
+            return
+        self.out.lights.append(
+            Light(
+                name=(element.findtext("name") or "").strip() or f"sun_{len(self.out.lights)}",
+                kind="directional",
+                pos=(0.0, 0.0, 10.0),
+                dir=(-0.5, 0.1, -0.9),
+                diffuse=(0.8, 0.8, 0.8),
+                specular=(0.2, 0.2, 0.2),
             )
+        )
 
     def physics(self, element: ET.Element) -> None:
         for child in element:
             if child.tag == "max_step_size":
-                (step,) = self.r.floats(child, 1)
+                (step,) = self.r.floats(child, 1, (0.001,))
                 self.out.physics["timestep"] = step
             else:
                 self.r.warn(child, "physics setting not supported; MuJoCo defaults are used")
 
     def gravity(self, element: ET.Element) -> None:
-        gx, gy, gz = self.r.floats(element, 3)
+        gx, gy, gz = self.r.floats(element, 3, (0.0, 0.0, -9.8))
         self.out.physics["gravity"] = (gx, gy, gz)
 
     def scene(self, element: ET.Element) -> None:
@@ -286,12 +198,14 @@ class _WorldParser:
         direction = element.find("direction")
         if direction is not None:
             handled.add("direction")
-            kwargs["dir"] = tuple(float(v) for v in rot @ np.array(self.r.floats(direction, 3)))
+            vector = self.r.floats(direction, 3, (0.0, 0.0, -1.0))
+            kwargs["dir"] = tuple(float(v) for v in rot @ np.array(vector))
         for tag in ("diffuse", "specular"):
             child = element.find(tag)
             if child is not None:
                 handled.add(tag)
-                kwargs[tag] = self.r.colour(child)[:3]
+                default = (1.0, 1.0, 1.0, 1.0) if tag == "diffuse" else (0.1, 0.1, 0.1, 1.0)
+                kwargs[tag] = self.r.colour(child, default)[:3]
         attenuation = element.find("attenuation")
         if attenuation is not None:
             handled.add("attenuation")
@@ -321,24 +235,34 @@ class _WorldParser:
         except WorldError as exc:
             raise self.r.error(element, str(exc)) from None
 
-    def model(self, element: ET.Element, parent: _Pose | None = None) -> None:
-        name = element.get("name") or f"model_{len(self.out.shapes)}"
+    def model(
+        self,
+        element: ET.Element,
+        parent: Pose | None = None,
+        *,
+        scope: str = "",
+        static: bool = False,
+    ) -> None:
+        name = scope + (element.get("name") or f"model_{len(self.out.shapes)}")
         pose = self.r.pose(element)
         if parent is not None:
-            pose = _compose(parent, pose)
-        if not self.r.boolean(element.find("static"), default=False):
+            pose = compose(parent, pose)
+        static = self.r.boolean(element.find("static"), default=static)
+        if not static and not any(c.tag in ("model", "include") for c in element):
             self.r.warn(element, f"model {name!r} is not static; placed as static geometry")
         for child in element:
             if child.tag == "link":
                 self.link(child, name, pose)
             elif child.tag == "model":
-                self.model(child, pose)
-            elif child.tag not in ("pose", "static"):
+                self.model(child, pose, scope=f"{name}::", static=static)
+            elif child.tag == "include":
+                self.include(child, pose, scope=f"{name}::", static=static)
+            elif child.tag not in ("pose", "static", "allow_auto_disable", "self_collide"):
                 self.r.warn(child, f"model element not supported (model {name!r}); skipped")
 
-    def link(self, element: ET.Element, model: str, model_pose: _Pose) -> None:
+    def link(self, element: ET.Element, model: str, model_pose: Pose) -> None:
         link = element.get("name") or "link"
-        pose = _compose(model_pose, self.r.pose(element))
+        pose = compose(model_pose, self.r.pose(element))
         visuals: list[tuple[str, ET.Element]] = []
         collisions: list[tuple[str, ET.Element]] = []
         for child in element:
@@ -373,23 +297,25 @@ class _WorldParser:
             if visual is not None and i not in used:
                 self.out.shapes.append(_with(visual, visual=True, collision=False))
 
-    def geometry(self, element: ET.Element, link_pose: _Pose, name: str) -> Shape | None:
+    def geometry(self, element: ET.Element, link_pose: Pose, name: str) -> Shape | None:
         is_visual = element.tag == "visual"
-        rot, pos = _compose(link_pose, self.r.pose(element))
+        rot, pos = compose(link_pose, self.r.pose(element))
         allowed = ("pose", "geometry", "material") if is_visual else ("pose", "geometry")
+        quiet = ("cast_shadows", "max_contacts", "surface", "laser_retro", "transparency", "meta")
         for child in element:
-            if child.tag not in allowed:
+            if child.tag not in allowed and child.tag not in quiet:
                 self.r.warn(child, f"{element.tag} setting not supported ({name}); skipped")
-        rgba = self.material(element.find("material"), name) if is_visual else _DEFAULT_RGBA
+        material = self.material(element.find("material"), name) if is_visual else None
         geometry = element.find("geometry")
         if geometry is None or len(geometry) == 0:
             raise self.r.error(element, f"{name}: missing <geometry> with a shape inside")
         shape_el = geometry[0]
+        is_mesh = shape_el.tag == "mesh"
         common: dict[str, Any] = {
             "name": name,
             "pos": tuple(float(v) for v in pos),
-            "rpy": _rpy(rot),
-            "rgba": rgba,
+            "rpy": rpy_of(rot),
+            "rgba": material if material is not None or is_mesh else _DEFAULT_RGBA,
         }
         try:
             return self._shape(shape_el, common, rot, pos)
@@ -438,42 +364,56 @@ class _WorldParser:
         return None
 
     def _mesh(self, shape_el: ET.Element, common: dict[str, Any]) -> Shape | None:
-
         uri = (shape_el.findtext("uri") or "").strip()
-        if uri.startswith(("model://", "package://", "http://", "https://")):
-            self.r.warn(shape_el, f"mesh uri {uri!r} cannot be resolved; use a file path")
+        if not uri:
+            self.r.warn(shape_el, "mesh without a <uri>; skipped")
             return None
-        path = Path(uri.removeprefix("file://"))
-        if not path.is_absolute() and self.r.base_dir is not None:
-            path = self.r.base_dir / path
-        scale = self.r.child_floats(shape_el, "scale", 3, (1.0, 1.0, 1.0))
-        sx, sy, sz = scale
+        path = self.res.mesh_file(uri, self.r.base_dir, self.r.where(shape_el))
+        if path is None:  # its model is missing: reported with the other missing models
+            return None
+        sx, sy, sz = self.r.child_floats(shape_el, "scale", 3, (1.0, 1.0, 1.0))
         for child in shape_el:
             if child.tag not in ("uri", "scale"):
-                self.r.warn(child, "mesh setting not supported; skipped")
+                self.r.warn(child, "mesh setting not supported (submesh); the whole mesh is used")
+        try:
+            data = load_mesh(path, (sx, sy, sz), cache=self.meshes)
+        except MeshFileError as exc:
+            raise WorldError(str(exc)) from None
+        for text in data.warnings:
+            if text not in self.r.warnings:
+                self.r.note(text)
         return Mesh(
             file=str(path),
             scale=(sx, sy, sz),
-            bounds=mesh_bounds(path, (sx, sy, sz)),
+            bounds=data.bounds,
+            parts=data.parts,
             **common,
         )
 
-    def material(self, element: ET.Element | None, name: str) -> tuple[float, float, float, float]:
+    def material(
+        self, element: ET.Element | None, name: str
+    ) -> tuple[float, float, float, float] | None:
+        """The visual's colour, or None when its material gives none."""
         if element is None:
-            return _DEFAULT_RGBA
+            return None
         rgba: tuple[float, float, float, float] | None = None
+        script_rgba: tuple[float, float, float, float] | None = None
         for child in element:
             if child.tag == "diffuse" or (child.tag == "ambient" and rgba is None):
                 rgba = self.r.colour(child)
             elif child.tag == "script":
                 script = (child.findtext("name") or "").strip()
-                if script in _GAZEBO_COLOURS:
-                    rgba = rgba or _GAZEBO_COLOURS[script]
-                else:
+                uris = [(u.text or "").strip() for u in child.findall("uri")]
+                script_rgba = self.res.script_colour(uris, script, self.r.base_dir)
+                for text in self.res.warnings:
+                    if text not in self.r.warnings:
+                        self.r.note(text)
+                if script_rgba is None:
                     self.r.warn(child, f"material script {script!r} unknown ({name}); grey used")
-            elif child.tag not in ("specular", "emissive", "ambient"):
+            elif child.tag not in ("specular", "emissive", "ambient", "lighting", "shader"):
                 self.r.warn(child, f"material element not supported ({name}); skipped")
-        return rgba or _DEFAULT_RGBA
+        # Gazebo: a script material is the base; <ambient>/<diffuse> set after it override
+        return rgba or script_rgba
 
 
 def _same_geometry(a: Shape, b: Shape) -> bool:
@@ -506,6 +446,9 @@ def parse_sdf_world(
     source: str = "<string>",
     base_dir: str | Path | None = None,
     seed: int | None = None,
+    packages: Mapping[str, str | os.PathLike[str]] | None = None,
+    model_path: ModelPath | None = None,
+    skip_missing_models: bool = False,
 ) -> WorldDescription:
     """Parse SDF text (the subset in the module docstring) into a world.
 
@@ -514,6 +457,13 @@ def parse_sdf_world(
         source: File name used in messages.
         base_dir: Directory relative mesh paths start from.
         seed: The world's seed (SDF has none; default 0).
+        packages: Package name -> directory: their exported model paths and
+            ``package://`` URIs (see :mod:`visnav.description.model_path`).
+        model_path: Where ``model://`` names are found; default
+            :func:`~visnav.description.model_path.model_path` of ``packages``, the
+            package holding ``source`` and the environment.
+        skip_missing_models: Load the world without the models that are not found
+            (one warning) instead of raising.
 
     Returns:
         The world; ``world.warnings`` lists everything skipped (each also
@@ -521,13 +471,21 @@ def parse_sdf_world(
 
     Raises:
         WorldError: Malformed XML (with line), no ``<world>`` or ``<model>``,
-            invalid numbers or sizes.
+            invalid numbers or sizes, models not found (all named in one error).
     """
-    reader = _SdfReader(source, Path(base_dir) if base_dir is not None else None)
+    reader = SdfReader(source, Path(base_dir) if base_dir is not None else None)
     root = reader.parse(text)
     if root.tag != "sdf":
         raise reader.error(root, "the root element must be <sdf>")
-    parser = _WorldParser(reader)
+    if model_path is None:
+        world_file = source if base_dir is not None and Path(source).is_file() else None
+        model_path = find_model_path(packages=packages, world_file=world_file)
+    resources = SdfResources(
+        model_path=model_path,
+        parse=reader.parse,
+        packages={name: Path(d) for name, d in (packages or {}).items()},
+    )
+    parser = _WorldParser(reader, resources)
     world = root.find("world")
     name = "sdf_world"
     if world is not None:
@@ -542,6 +500,11 @@ def parse_sdf_world(
     for child in root:
         if child.tag not in ("world", "model"):
             reader.warn(child, "not supported at the top level; skipped")
+    if resources.missing:
+        error = missing_models_error(resources.missing, model_path, source)
+        if not skip_missing_models:
+            raise error
+        reader.note(f"{error} -- skipped (skip_missing_models)")
     out = parser.out
     try:
         return WorldDescription(
@@ -560,12 +523,20 @@ def parse_sdf_world(
         raise WorldError(msg) from None
 
 
-def load_sdf_world(path: str | Path, *, seed: int | None = None) -> WorldDescription:
+def load_sdf_world(
+    path: str | Path,
+    *,
+    seed: int | None = None,
+    packages: Mapping[str, str | os.PathLike[str]] | None = None,
+    skip_missing_models: bool = False,
+) -> WorldDescription:
     """Read an SDF world file (see :func:`parse_sdf_world`).
 
     Args:
         path: The ``.sdf`` / ``.world`` file.
         seed: The world's seed.
+        packages: Package name -> directory (model paths they export, ``package://``).
+        skip_missing_models: Load the rest when models are not found (one warning).
 
     Returns:
         The world.
@@ -575,4 +546,11 @@ def load_sdf_world(path: str | Path, *, seed: int | None = None) -> WorldDescrip
     """
     file = Path(path)
     text = read_text(file, what="the SDF world", error=WorldError)
-    return parse_sdf_world(text, source=str(file), base_dir=file.parent, seed=seed)
+    return parse_sdf_world(
+        text,
+        source=str(file),
+        base_dir=file.parent,
+        seed=seed,
+        packages=packages,
+        skip_missing_models=skip_missing_models,
+    )

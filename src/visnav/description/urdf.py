@@ -11,8 +11,8 @@ sphere, capsule, mesh), materials (colour; textures produce a warning), joints
 origin, axis, limit, dynamics and mimic. Mesh and resource URIs ``package://``,
 ``file://``, ``model://`` and relative paths are resolved to existing files;
 a missing file is an error naming the URI, the element and the paths tried.
-Meshes must be STL, OBJ or MSH (what MuJoCo loads); other formats (Collada
-``.dae``) produce a warning and the geometry is skipped.
+Meshes may be Collada, STL, OBJ or MSH (read by :mod:`visnav.description.mesh_files`);
+other formats produce a warning and the geometry is skipped.
 
 Differences from ROS's urdfdom: unknown elements produce warnings instead of
 being skipped silently; a zero axis, a non-positive size or a revolute joint
@@ -28,6 +28,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from visnav.description.urdf_model import (
     MESH_EXTENSIONS,
@@ -111,7 +112,7 @@ class _Parser:
     def warn(self, element: ET.Element, text: str) -> None:
         message = f"{self.doc.where(element)}: <{element.tag}>: {text}"
         self.warnings.append(message)
-        _LOG.warning("%s", message)
+        _LOG.debug("%s", message)  # the loader logs one summary of them all
 
     # numbers -------------------------------------------------------------
 
@@ -248,9 +249,9 @@ class _Parser:
         if path.suffix.lower() not in MESH_EXTENSIONS:
             self.warn(
                 shape,
-                f"{owner}mesh {filename!r} is {path.suffix or 'extensionless'}; MuJoCo loads "
+                f"{owner}mesh {filename!r} is {path.suffix or 'extensionless'}; visnav reads "
                 f"{', '.join(MESH_EXTENSIONS)} only, so this geometry is skipped (convert it, "
-                "e.g. with trimesh or Blender, to STL or OBJ)",
+                "e.g. with Blender, to Collada, STL or OBJ)",
             )
             return None
         return Mesh(filename, path, (scale[0], scale[1], scale[2]))
@@ -328,17 +329,18 @@ class _Parser:
             )
         names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
         values = tuple(self.number(inertia_el, n, default=0.0, owner=owner) for n in names)
-        ixx, ixy, ixz, iyy, iyz, izz = values
-        eig = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
-        tol = 1e-12 + 1e-9 * float(np.max(np.abs(eig)))
-        if float(eig.min()) < -tol or eig[0] + eig[1] < eig[2] - tol:
-            raise self.doc.error(
+        physical = _nearest_physical_inertia(values)
+        if physical is not None:
+            eig = np.linalg.eigvalsh(_inertia_matrix(values))
+            self.warn(
                 inertia_el,
-                f"{owner}inertia (ixx ixy ixz iyy iyz izz) = {values} is not physical "
-                f"(principal moments {np.round(eig, 9).tolist()} must be >= 0 and satisfy the "
-                "triangle inequality)",
-                "recompute the inertia tensor (e.g. from the geometry and mass)",
+                f"{owner}inertia {values} is not physical (principal moments "
+                f"{np.round(eig, 9).tolist()}); the nearest physical tensor "
+                f"{tuple(round(v, 9) for v in physical)} is used (ixx ixy ixz iyy iyz izz; "
+                "Gazebo runs it as written, MuJoCo cannot; moments must be >= 0 and satisfy "
+                "the triangle inequality: recompute them from the geometry and mass)",
             )
+            values = physical
         return Inertial(self.origin(element, owner), mass, values)  # type: ignore[arg-type]
 
     def visual(
@@ -392,7 +394,7 @@ class _Parser:
             links[tag] = str(el.get("link"))
         axis: tuple[float, ...] = (1.0, 0.0, 0.0)
         axis_el = element.find("axis")
-        if axis_el is not None:
+        if axis_el is not None and jtype not in ("fixed", "floating"):  # urdfdom reads no other
             axis = self.floats(axis_el, "xyz", 3, default=(1.0, 0.0, 0.0), owner=owner)
             norm = math.sqrt(sum(a * a for a in axis))
             if norm < 1e-9:
@@ -461,6 +463,34 @@ class _Parser:
             dynamics=dynamics,
             mimic=mimic,
         )
+
+
+def _inertia_matrix(values: tuple[float, ...]) -> NDArray[np.float64]:
+    ixx, ixy, ixz, iyy, iyz, izz = values
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+def _nearest_physical_inertia(values: tuple[float, ...]) -> tuple[float, ...] | None:
+    """The nearest physical inertia tensor (ixx ixy ixz iyy iyz izz), None if it is one.
+
+    In the tensor's own principal axes: negative moments become 0, then, if the largest
+    moment exceeds the sum of the other two, the three move by the same amount towards
+    equality (the closest point, in moments, where the triangle inequality holds).
+    """
+    matrix = _inertia_matrix(values)
+    eig, axes = np.linalg.eigh(matrix)
+    tol = 1e-12 + 1e-9 * float(np.max(np.abs(eig)))
+    if float(eig.min()) >= -tol and eig[0] + eig[1] >= eig[2] - tol:
+        return None
+    moments = np.maximum(eig, 0.0)
+    excess = float(moments[2] - moments[0] - moments[1])
+    if excess > 0.0:
+        moments = moments + np.array([excess, excess, -excess]) / 3.0
+    fixed = axes @ np.diag(moments) @ axes.T
+    return (
+        float(fixed[0, 0]), float(fixed[0, 1]), float(fixed[0, 2]),
+        float(fixed[1, 1]), float(fixed[1, 2]), float(fixed[2, 2]),
+    )  # fmt: skip
 
 
 def _check_tree(
@@ -574,6 +604,7 @@ def parse_urdf(
     joints: dict[str, Joint] = {}
     joint_elements: dict[str, ET.Element] = {}
     gazebo: list[GazeboBlock] = []
+    transmissions: list[ET.Element] = []
     for element in root_el:
         if element.tag == "link":
             link = parser.link(element, materials)
@@ -597,15 +628,20 @@ def parse_urdf(
         elif element.tag == "material":
             continue
         elif element.tag == "transmission":
-            parser.warn(
-                element,
-                f"transmission {element.get('name')!r} is ignored: ros_control is not simulated "
-                "(drive joints with a gazebo plugin such as libgazebo_ros_diff_drive.so)",
-            )
+            transmissions.append(element)  # read with the libgazebo_ros_control.so plugin
         else:
             parser.warn(element, f"unknown top-level element <{element.tag}> is ignored")
     if not links:
         raise doc.error(root_el, f"robot {name!r} has no links", "add at least one <link>")
+    plugins = (p.get("filename") for b in gazebo for p in b.element.iter("plugin"))
+    if transmissions and "libgazebo_ros_control.so" not in plugins:
+        for element in transmissions:
+            parser.warn(
+                element,
+                f"transmission {element.get('name')!r} is ignored: no libgazebo_ros_control.so "
+                "plugin drives it (add one, or drive the joints with a gazebo plugin such as "
+                "libgazebo_ros_diff_drive.so)",
+            )
     # Resolve visual material references defined after their use.
     links = {
         lname: Link(
@@ -627,6 +663,7 @@ def parse_urdf(
         doc=doc,
         base_dir=parser.base_dir,
         warnings=tuple(parser.warnings),
+        transmissions=tuple(transmissions),
     )
 
 

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from visnav.description.errors import RobotDescriptionError
 from visnav.description.rigid import make_transform
+from visnav.description.xacro_locations import LOCATION_ATTRIBUTE
 
 __all__ = [
     "Box",
@@ -51,8 +52,8 @@ __all__ = [
     "resolve_resource",
 ]
 
-MESH_EXTENSIONS = (".stl", ".obj", ".msh")
-"""Mesh file extensions MuJoCo loads (compared case-insensitively)."""
+MESH_EXTENSIONS = (".dae", ".stl", ".obj", ".msh")
+"""Mesh file extensions visnav reads (compared case-insensitively; see mesh_files)."""
 
 JointType = Literal["fixed", "revolute", "continuous", "prismatic", "floating"]
 
@@ -62,13 +63,21 @@ JointType = Literal["fixed", "revolute", "continuous", "prismatic", "floating"]
 
 @dataclass(frozen=True)
 class XmlDoc:
-    """A parsed XML document's source name and each element's line number."""
+    """A parsed XML document's source name and each element's line number.
+
+    ``origins`` holds, for the elements of an expanded Xacro document, the file and
+    line where each was written (:mod:`visnav.description.xacro_locations`).
+    """
 
     source: str
     lines: Mapping[int, int] = field(repr=False)
+    origins: Mapping[int, str] = field(default_factory=dict, repr=False)
 
     def where(self, element: ET.Element) -> str:
-        """Return ``"source:line"`` for an element of this document."""
+        """Return ``"file:line"`` where an element of this document was written."""
+        origin = self.origins.get(id(element))
+        if origin is not None:
+            return origin
         line = self.lines.get(id(element))
         return f"{self.source}:{line}" if line is not None else self.source
 
@@ -79,6 +88,9 @@ class XmlDoc:
 
 def parse_xml(text: str, source: str) -> tuple[ET.Element, XmlDoc]:
     """Parse XML text, recording each element's line number.
+
+    An element's :data:`~visnav.description.xacro_locations.LOCATION_ATTRIBUTE`
+    (left by Xacro expansion) is taken off it and becomes its location.
 
     Args:
         text: the XML document.
@@ -92,11 +104,15 @@ def parse_xml(text: str, source: str) -> tuple[ET.Element, XmlDoc]:
     """
     builder = ET.TreeBuilder()
     lines: dict[int, int] = {}
+    origins: dict[int, str] = {}
     parser = expat.ParserCreate()
 
     def start(tag: str, attrs: dict[str, str]) -> None:
+        origin = attrs.pop(LOCATION_ATTRIBUTE, None)
         element = builder.start(tag, attrs)
         lines[id(element)] = parser.CurrentLineNumber
+        if origin:
+            origins[id(element)] = origin
 
     def end(tag: str) -> None:
         builder.end(tag)
@@ -112,7 +128,7 @@ def parse_xml(text: str, source: str) -> tuple[ET.Element, XmlDoc]:
             f"{expat.errors.messages[exc.code]}. Fix: correct the XML syntax at that position"
         )
         raise RobotDescriptionError(msg) from exc
-    return builder.close(), XmlDoc(source=source, lines=lines)
+    return builder.close(), XmlDoc(source=source, lines=lines, origins=origins)
 
 
 # --------------------------------------------------------------------------- dataclasses
@@ -292,6 +308,8 @@ class Urdf:
     doc: XmlDoc = field(default_factory=lambda: XmlDoc("<string>", {}), repr=False)
     base_dir: Path | None = None
     warnings: tuple[str, ...] = ()
+    transmissions: tuple[ET.Element, ...] = field(default=(), repr=False)
+    """The ``<transmission>`` elements (read by the ``libgazebo_ros_control.so`` parser)."""
 
     @property
     def source(self) -> str:

@@ -56,12 +56,15 @@ from __future__ import annotations
 
 import difflib
 import os
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from visnav.description.errors import WorldError
+from visnav.description.errors import WorldError, WorldWarning
 from visnav.description.sdf_world import load_sdf_world
+from visnav.description.warning_summary import log_warning_summary
 from visnav.description.world_yaml import load_yaml_world, world_from_dict
+from visnav.description.xacro_locations import display_path
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -108,6 +111,8 @@ def load_world(
     *,
     params: Mapping[str, Any] | None = None,
     seed: int | None = None,
+    packages: Mapping[str, str | os.PathLike[str]] | None = None,
+    skip_missing_models: bool = False,
 ) -> WorldDescription:
     """Load a world from a file or a built-in generator.
 
@@ -117,6 +122,16 @@ def load_world(
         params: Parameters of a built-in generator (for example
             ``{"size": [40, 40], "obstacles": 120}`` for ``forest``).
         seed: Overrides the world's seed (textures, random layouts).
+        packages: Package name -> directory: an SDF world's ``model://`` models are
+            also looked up in the model paths these packages export (as ``gazebo_ros``
+            does), and ``package://`` URIs resolve (see
+            :mod:`visnav.description.model_path`).
+        skip_missing_models: An SDF world whose included models are not found loads
+            without them (one warning) instead of raising.
+
+    An SDF world's warnings (``world.warnings``) are logged as one grouped summary
+    (:mod:`visnav.description.warning_summary`), not as one ``WorldWarning`` each
+    (:func:`~visnav.description.sdf_world.parse_sdf_world` issues those).
 
     Returns:
         The world.
@@ -124,7 +139,7 @@ def load_world(
     Raises:
         WorldError: Missing or malformed file (with file and line), unknown
             world name (with the closest name), parameters given for a file,
-            invalid content.
+            invalid content, SDF models not found (all listed in one error).
     """
     text = os.fspath(source)
     path = Path(text)
@@ -143,7 +158,17 @@ def load_world(
         )
         raise WorldError(msg)
     if suffix in _SDF_SUFFIXES or (suffix not in _YAML_SUFFIXES and _sniff_xml(path)):
-        return load_sdf_world(path, seed=seed)
+        with warnings.catch_warnings():  # each one is in world.warnings: one summary below
+            warnings.simplefilter("ignore", WorldWarning)
+            world = load_sdf_world(
+                path, seed=seed, packages=packages, skip_missing_models=skip_missing_models
+            )
+        log_warning_summary(
+            world.warnings,
+            subject=f"world {world.name!r} ({display_path(path)})",
+            base_dir=display_path(path.parent),
+        )
+        return world
     return load_yaml_world(path, seed=seed)
 
 

@@ -19,11 +19,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from visnav.description.errors import WorldError
+from visnav.description.mesh_convex import ConvexPieces, convex_pieces
+from visnav.description.mesh_files import MeshData, MeshPart, load_mesh
 from visnav.description.rigid import rpy_to_matrix
 
 if TYPE_CHECKING:
@@ -267,17 +270,35 @@ class Sphere(_ShapeBase):
 
 @dataclass(frozen=True, kw_only=True)
 class Mesh(_ShapeBase):
-    """A mesh file (STL, OBJ or MSH, as MuJoCo reads them), scaled per axis.
+    """A mesh file (Collada, OBJ, STL or MSH, see :mod:`visnav.description.mesh_files`).
 
     ``bounds`` is the axis-aligned box of the scaled vertices in the mesh frame
-    (min corner, max corner). Occupancy and obstacle distance use this box for
-    meshes: it contains the mesh, so clearances computed from it are never
-    larger than the true ones.
+    (min corner, max corner). ``parts`` are the file's triangles by colour, read
+    when the world is loaded (empty: read from ``file`` on first use, see
+    :attr:`mesh_data`); ``rgba`` None draws each part in its own colour.
+    :attr:`pieces` are the convex pieces the simulator collides with and ground
+    truth measures against (:mod:`visnav.description.mesh_convex`).
     """
 
     file: str
     scale: Vec3 = (1.0, 1.0, 1.0)
     bounds: tuple[Vec3, Vec3]
+    parts: tuple[MeshPart, ...] = field(default=(), compare=False, repr=False)
+
+    @cached_property
+    def mesh_data(self) -> MeshData:
+        """The scaled triangles (``parts``, or the file read now)."""
+        if self.parts:
+            return MeshData(file=self.file, parts=self.parts)
+        return load_mesh(self.file, self.scale)
+
+    @cached_property
+    def pieces(self) -> ConvexPieces:
+        """Convex pieces of the collision shape, in the mesh frame (computed once)."""
+        data = self.mesh_data
+        offsets = np.cumsum([0, *(len(p.vertices) for p in data.parts)])[:-1]
+        faces = np.concatenate([p.faces + o for p, o in zip(data.parts, offsets, strict=True)])
+        return convex_pieces(data.vertices, faces, name=f"mesh '{self.name}' ({self.file})")
 
     def __post_init__(self) -> None:
         self._check_common("mesh")

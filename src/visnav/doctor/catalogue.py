@@ -1,7 +1,7 @@
 """The fault catalogue: every check doctor runs, by id.
 
 Each finding names one of these ids. Ids are ``<category>.<name>``; categories follow
-the issue's list (topics, rates, images, camera_info, tf, time, frames, planner).
+the issue's list (topics, description, rates, images, camera_info, tf, time, frames, planner).
 ``needs_graph`` checks look at publishers and subscriptions, which a bag does not
 record: they are skipped on bags (QoS of a bag's publishers is still read).
 """
@@ -13,7 +13,17 @@ from dataclasses import dataclass
 
 __all__ = ["CATALOGUE", "CATEGORIES", "CheckInfo"]
 
-CATEGORIES = ("topics", "rates", "images", "camera_info", "tf", "time", "frames", "planner")
+CATEGORIES = (
+    "topics",
+    "description",
+    "rates",
+    "images",
+    "camera_info",
+    "tf",
+    "time",
+    "frames",
+    "planner",
+)
 
 
 @dataclass(frozen=True)
@@ -61,6 +71,16 @@ _ALL = (
         needs_graph=True,
     ),
     _c("topics.undecodable", "a topic's type is unknown to visnav, its data were not checked"),
+    # description
+    _c(
+        "description.sensor_unpublished",
+        "a sensor or plugin of robot_description declares a topic nobody publishes",
+        needs_graph=True,
+    ),
+    _c(
+        "description.sensor_ignored",
+        "a <sensor> or <plugin> of robot_description is not simulated (unsupported type)",
+    ),
     # rates
     _c("rates.no_messages", "a published (or expected) topic delivered no message"),
     _c("rates.mismatch", "measured rate differs from the declared rate"),

@@ -9,6 +9,7 @@ from visnav.doctor.builder import SamplingPolicy
 from visnav.doctor.catalogue import CATALOGUE
 from visnav.doctor.checks import run_checks
 from visnav.doctor.context import CheckContext
+from visnav.doctor.errors import DoctorError
 from visnav.doctor.expect import Expectations
 from visnav.doctor.findings import Report
 from visnav.doctor.live import observe_live
@@ -67,8 +68,21 @@ def doctor_live(
     fixed_frame: str | None = None,
     policy: SamplingPolicy | None = None,
 ) -> Report:
-    """Listen to a live graph for ``duration_s`` seconds and diagnose it."""
+    """Listen to a live graph for ``duration_s`` seconds and diagnose it.
+
+    Raises:
+        DoctorError: the graph has no topic at all (nothing runs in this domain): there is
+            nothing to diagnose, and "no findings" would read as a healthy system.
+    """
     obs = observe_live(context=context, domain=domain, duration_s=duration_s, policy=policy)
+    if not obs.topics and (obs.graph is None or not obs.graph.topics()):
+        where = obs.label.removeprefix("live graph, ")
+        msg = (
+            f"no topics in graph {where}: is anything running, in this VISNAV_DOMAIN? "
+            "Fix: start the system, or look in its domain (VISNAV_DOMAIN=N visnav doctor, "
+            "or visnav --domain N doctor)"
+        )
+        raise DoctorError(msg)
     return diagnose(obs, expect=expect, fixed_frame=fixed_frame)
 
 

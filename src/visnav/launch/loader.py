@@ -18,10 +18,21 @@ from pathlib import Path
 from visnav.launch.description import LaunchDescription, NodeSpec
 from visnav.launch.errors import LaunchArgError, LaunchParseError
 from visnav.launch.roslaunch import load_roslaunch
-from visnav.launch.substitutions import SubstitutionContext, own_package, visnav_share
+from visnav.launch.substitutions import (
+    SubstitutionContext,
+    find_package,
+    own_package,
+    visnav_share,
+)
 from visnav.launch.yaml_format import Scope, load_yaml_launch
 
-__all__ = ["builtin_launch_files", "find_launch_file", "load_launch", "parse_launch_args"]
+__all__ = [
+    "builtin_launch_files",
+    "find_launch_file",
+    "find_package_launch_file",
+    "load_launch",
+    "parse_launch_args",
+]
 
 _YAML = (".yaml", ".yml")
 _XML = (".launch", ".xml")
@@ -76,6 +87,62 @@ def find_launch_file(name: str | os.PathLike[str]) -> Path:
     raise LaunchParseError(msg)
 
 
+def find_package_launch_file(
+    package: str,
+    name: str,
+    *,
+    packages: Mapping[str, str | os.PathLike[str]] | None = None,
+    env: Mapping[str, str] | None = None,
+) -> Path:
+    """Find ``roslaunch PACKAGE FILE``'s file: ``name`` anywhere under the package's directory.
+
+    The package comes from ``packages`` (``--package NAME=DIR``) or ``ROS_PACKAGE_PATH``
+    (a directory whose ``package.xml`` names it), as ``$(find)`` finds it; the file is
+    searched for by name in the whole package (hidden directories skipped), as roslaunch
+    does; a name with a ``/`` is also tried as a path inside the package.
+
+    Raises:
+        LaunchArgError: the package is not found (the message says how to make it known).
+        LaunchParseError: no such file in the package, or several (all listed).
+    """
+    root = Path(find_package(package, packages=packages, env=env))
+    if "/" in name and (root / name).is_file():
+        return root / name
+    base = Path(name).name
+    found: list[Path] = []
+    seen: set[str] = set()
+    for folder, dirs, files in os.walk(root, followlinks=True):
+        real = os.path.realpath(folder)
+        dirs[:] = [] if real in seen else sorted(d for d in dirs if not d.startswith("."))
+        if real in seen:  # a symlink loop
+            continue
+        seen.add(real)
+        if base in files:
+            found.append(Path(folder) / base)
+    if len(found) == 1:
+        return found[0]
+    if found:
+        listing = ", ".join(str(f.relative_to(root)) for f in found)
+        msg = (
+            f"package {package!r} ({root}) has {len(found)} files named {base!r}: {listing}; "
+            "give the file's path instead of PACKAGE FILE"
+        )
+        raise LaunchParseError(msg)
+    launch_files = sorted(
+        str(f.relative_to(root))
+        for pattern in ("*.launch", "*.launch.xml", "*.launch.yaml")
+        for f in root.rglob(pattern)
+    )
+    close = difflib.get_close_matches(base, [Path(f).name for f in launch_files], n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    shown = ", ".join(launch_files[:12]) + (" ..." if len(launch_files) > 12 else "")
+    msg = (
+        f"package {package!r} ({root}) has no file named {base!r}{hint} (its launch files: "
+        f"{shown or 'none'})"
+    )
+    raise LaunchParseError(msg)
+
+
 def _kind(path: Path) -> str:
     name = path.name
     if name.endswith(".py"):
@@ -98,8 +165,9 @@ def _kind(path: Path) -> str:
 class _Loader:
     """Loads a file of either format; includes come back here."""
 
-    def __init__(self, description: LaunchDescription) -> None:
+    def __init__(self, description: LaunchDescription, *, skip_unmapped: bool = False) -> None:
         self.description = description
+        self.skip_unmapped = skip_unmapped
 
     def include(
         self, path: str, args: Mapping[str, str], scope: Scope, chain: tuple[str, ...]
@@ -132,7 +200,13 @@ class _Loader:
         description = self.description if top else None
         if _kind(path) == "xml":
             return load_roslaunch(
-                path, args, scope, chain=chain, include=self.include, description=description
+                path,
+                args,
+                scope,
+                chain=chain,
+                include=self.include,
+                description=description,
+                skip_unmapped=self.skip_unmapped,
             )
         return load_yaml_launch(
             path, args, scope, chain=chain, include=self.include, description=description
@@ -145,6 +219,7 @@ def load_launch(
     *,
     packages: Mapping[str, str | os.PathLike[str]] | None = None,
     env: Mapping[str, str] | None = None,
+    skip_unmapped: bool = False,
 ) -> LaunchDescription:
     """Load a launch file (YAML or roslaunch XML) with its includes.
 
@@ -153,6 +228,8 @@ def load_launch(
         args: ``name -> value`` launch arguments (strings, as ``name:=value`` gives them).
         packages: package directories for ``$(find-pkg-share name)`` / ``$(find name)``.
         env: environment for ``$(env)`` and ``ROS_PACKAGE_PATH`` (default ``os.environ``).
+        skip_unmapped: roslaunch files: leave out the elements and nodes visnav cannot map
+            (each one a note) instead of refusing the file.
 
     Returns:
         The validated description.
@@ -163,8 +240,9 @@ def load_launch(
     """
     file = find_launch_file(path)
     description = LaunchDescription(source=str(file))
-    ctx = SubstitutionContext(packages={k: str(v) for k, v in (packages or {}).items()}, env=env)
-    loader = _Loader(description)
+    folders = {k: str(Path(v).expanduser().resolve()) for k, v in (packages or {}).items()}
+    ctx = SubstitutionContext(packages=folders, env=env)
+    loader = _Loader(description, skip_unmapped=skip_unmapped)
     scope = Scope(ctx=ctx)
     description.nodes = loader.load(file, dict(args or {}), replace(scope), (), top=True)
     description.validate()

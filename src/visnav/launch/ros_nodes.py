@@ -4,27 +4,36 @@
 roslaunch                                      visnav
 =============================================  ============================================
 ``robot_state_publisher``                      ``robot_state_publisher``: ``robot_description``
-                                               found as roscpp's ``searchParam`` finds it;
-                                               ``tf_prefix`` -> ``frame_prefix``
+                                               and ``tf_prefix`` found as roscpp's
+                                               ``searchParam`` finds them (``tf_prefix`` ->
+                                               ``frame_prefix``); ``publish_frequency`` (ROS 1's
+                                               default 50)
+``joint_state_publisher`` (``_gui``)           ``joint_state_publisher`` (``_gui``: headless):
+                                               ``rate``, ``source_list``, ``zeros``, ``use_gui``
 ``tf2_ros`` / ``tf``                           ``static_transform_publisher`` (args -> params;
 ``static_transform_publisher``                 tf's period is dropped: ``/tf_static`` latches)
 ``gazebo_ros spawn_model``                     ``spawn_model``: ``-urdf|-sdf``, ``-param P`` or
                                                ``-file F``, ``-model``, ``-x -y -z -R -P -Y``,
-                                               ``-robot_namespace``, ``-reference_frame``,
-                                               ``-unpause``, ``-J joint value``
+                                               ``-robot_namespace``; ``-R -P -J``,
+                                               ``-unpause``, ``-b``, ``-wait``,
+                                               ``-package_to_model`` noted as ignored;
+                                               ``-database``, ``-sdf`` refused
 ``depthimage_to_laserscan``                    ``depthimage_to_laserscan``: topic ``image`` ->
                                                ``depth``, its sibling ``camera_info`` ->
                                                ``depth_camera_info`` (image_transport's rule);
                                                ``output_frame_id`` -> ``output_frame``
 ``image_proc``                                 ``image_proc`` (same topics)
 ``rviz``                                       ``viz`` (the viewer): ``-d CONFIG`` (its fixed
-                                               frame is read), ``-f FRAME``
+                                               frame is read), ``-f FRAME``; left out with a
+                                               note without rerun-sdk
 ``gazebo_ros/launch/empty_world.launch``       ``sim`` named ``gazebo``: ``world_name`` ->
-                                               ``world``, ``paused``; ``/use_sim_time``
+                                               ``world``; ``/use_sim_time``; the other args
+                                               (``paused`` too) noted when not Gazebo's default
 =============================================  ============================================
 
 ego-planner's nodes (``ego_planner_node``, ``traj_server``, ``waypoint_generator``) and the
-camera drivers (``usb_cam``, ``cv_camera``) are mapped in :mod:`visnav.launch.ros_planner_nodes`.
+camera drivers (``usb_cam``, ``cv_camera``) are mapped in :mod:`visnav.launch.ros_planner_nodes`;
+Gazebo's ``empty_world.launch`` and ``spawn_model`` in :mod:`visnav.launch.ros_gazebo`.
 
 Private parameters (``<param>`` inside ``<node>``, ``~name``) become the node's
 parameters; nested names (``a/b``) become ROS 2's ``a.b``. A node with
@@ -34,17 +43,21 @@ parameters; nested names (``a/b``) become ROS 2's ``a.b``. A node with
 from __future__ import annotations
 
 import contextlib
-import difflib
+import importlib.util
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from visnav.launch.description import NodeSpec
-from visnav.launch.errors import RoslaunchImportError
-from visnav.launch.substitutions import VIRTUAL_PACKAGES
+from visnav.launch.ros_control_nodes import CONTROLLER_TRANSLATORS
+from visnav.launch.ros_gazebo import (
+    EMPTY_WORLD_ARGS,
+    GAZEBO_TRANSLATORS,
+    empty_world_node,
+    fold_spawns,
+)
 from visnav.safe_yaml import YamlError, load_yaml_file
-from visnav.textfile import TextFileError, read_text
 from visnav.tf.static_tf import StaticTransformError, static_transform_params_from_args
 
 __all__ = [
@@ -62,36 +75,16 @@ MAPPABLE = (
     "<launch>, <arg>, <group ns if unless>, <remap>, <param> (value/type, textfile, command "
     "running xacro; use_sim_time, robot_description), <rosparam command=load>, <include> of "
     "$(find gazebo_ros)/launch/empty_world.launch, of other roslaunch XML files and of visnav "
-    "YAML launch files, and <node> of robot_state_publisher, tf2_ros or tf "
+    "YAML launch files, and <node> of robot_state_publisher, joint_state_publisher(_gui), "
+    "tf2_ros or tf "
     "static_transform_publisher, gazebo_ros spawn_model, depthimage_to_laserscan, image_proc, "
     "rviz (-> the viz node), ego_planner ego_planner_node and traj_server, waypoint_generator "
-    "(folded into the planner), usb_cam usb_cam_node, cv_camera cv_camera_node. ROS 2 launch "
+    "(folded into the planner), usb_cam usb_cam_node, cv_camera cv_camera_node, "
+    "controller_manager spawner / controller_manager spawn|load|start (the sim's ros_control "
+    "controllers). ROS 2 launch "
     "files (Python or XML) are out of scope: write a visnav "
     "YAML launch file (docs/launch.md)"
 )
-
-# gazebo_ros empty_world.launch (Noetic) and its defaults.
-EMPTY_WORLD_ARGS: Mapping[str, str] = {
-    "paused": "false",
-    "use_sim_time": "true",
-    "extra_gazebo_args": "",
-    "gui": "true",
-    "recording": "false",
-    "headless": "false",
-    "debug": "false",
-    "physics": "ode",
-    "verbose": "false",
-    "output": "screen",
-    "world_name": "worlds/empty.world",
-    "respawn_gazebo": "false",
-    "use_clock_frequency": "false",
-    "pub_clock_frequency": "100",
-    "enable_ros_network": "true",
-    "server_required": "false",
-    "gui_required": "false",
-}
-_EMPTY_WORLDS = ("worlds/empty.world", "worlds/empty_sky.world", "")
-_WORLD_SUFFIXES = (".world", ".sdf", ".yaml", ".yml")
 
 
 def _bool(text: str) -> bool:
@@ -206,25 +199,74 @@ def _no_args(node: RosNode) -> list[str]:
     return []
 
 
+def _description_param(node: RosNode, params: ParamServer, private: dict[str, Any]) -> str | None:
+    """Put ``robot_description`` into ``private`` as roscpp's ``searchParam`` finds it."""
+    if "robot_description" in private:
+        return None
+    found = params.search(node.namespace, "robot_description")
+    if found is None:
+        return (
+            f"{node.type} {node.fqn} needs a robot_description parameter: set "
+            '<param name="robot_description" command="$(find xacro)/xacro FILE"/>'
+        )
+    private["robot_description"] = params.get(found)
+    return None
+
+
 def _robot_state_publisher(
     node: RosNode, params: ParamServer, packages: Mapping[str, str]
 ) -> Translation:
     del packages
     issues = _no_args(node)
     private = params.private(node.fqn)
+    # ROS 1 robot_state_publisher finds tf_prefix with searchParam (private first)
+    if "tf_prefix" not in private:
+        found = params.search(node.namespace, "tf_prefix")
+        if found is not None:
+            private["tf_prefix"] = params.get(found)
     prefix = private.pop("tf_prefix", None)
     if prefix:
         private["frame_prefix"] = str(prefix).strip("/") + "/"
-    if "robot_description" not in private:
-        found = params.search(node.namespace, "robot_description")
-        if found is None:
-            issues.append(
-                f"robot_state_publisher {node.fqn} needs a robot_description parameter: set "
-                '<param name="robot_description" command="$(find xacro)/xacro FILE"/>'
-            )
-        else:
-            private["robot_description"] = params.get(found)
+    private.setdefault("publish_frequency", 50.0)  # ROS 1's default (ROS 2's is 20)
+    dropped = []
+    if not _bool(str(private.pop("use_tf_static", True))):
+        dropped.append("use_tf_static:=false (fixed joints always go to /tf_static)")
+    if "ignore_timestamp" in private:
+        dropped.append(f"ignore_timestamp:={private.pop('ignore_timestamp')}")
+    if dropped:
+        params.notes.append(
+            f"{node.source}: robot_state_publisher {node.fqn}: ignored " + ", ".join(dropped)
+        )
+    issue = _description_param(node, params, private)
+    if issue:
+        issues.append(issue)
     return node.spec("robot_state_publisher", private), issues
+
+
+def _joint_state_publisher(
+    node: RosNode, params: ParamServer, packages: Mapping[str, str]
+) -> Translation:
+    del packages
+    issues = _no_args(node)
+    private = params.private(node.fqn)
+    issue = _description_param(node, params, private)
+    if issue:
+        issues.append(issue)
+    if "rate" in private:
+        with contextlib.suppress(TypeError, ValueError):
+            private["rate"] = float(private["rate"])
+    if isinstance(private.get("source_list"), str):
+        private["source_list"] = [private["source_list"]]
+    for key in [k for k in private if k.startswith("dependent_joints.")]:
+        params.notes.append(
+            f"{node.source}: joint_state_publisher {node.fqn}: {key} is not supported (use "
+            "<mimic> in the URDF)"
+        )
+        private.pop(key)
+    executable = (
+        "joint_state_publisher_gui" if node.pkg.endswith("_gui") else "joint_state_publisher"
+    )
+    return node.spec(executable, private), issues
 
 
 def _static_transform_publisher(
@@ -237,103 +279,6 @@ def _static_transform_publisher(
     except StaticTransformError as exc:
         return None, [f"node {node.fqn}: {exc}"]
     return node.spec("static_transform_publisher", values), []
-
-
-_SPAWN_FLOATS = {"-x": "x", "-y": "y", "-z": "z", "-R": "R", "-P": "P", "-Y": "Y"}
-_SPAWN_STRINGS = {
-    "-model": "model",
-    "-robot_namespace": "robot_namespace",
-    "-reference_frame": "reference_frame",
-    "-gazebo_namespace": "gazebo_namespace",
-}
-
-_SPAWN_OPTIONS = (
-    *_SPAWN_FLOATS,
-    *_SPAWN_STRINGS,
-    "-param",
-    "-file",
-    "-J",
-    "-urdf",
-    "-sdf",
-    "-unpause",
-)
-
-
-def _spawn_model(node: RosNode, params: ParamServer, packages: Mapping[str, str]) -> Translation:
-    issues: list[str] = []
-    out: dict[str, Any] = {"format": "urdf"}
-    joint_names: list[str] = []
-    joint_positions: list[float] = []
-    source: str | None = None
-    args = list(node.args)
-    i = 0
-    while i < len(args):
-        flag = args[i]
-        value = args[i + 1] if i + 1 < len(args) else None
-        if flag in ("-urdf", "-sdf"):
-            out["format"] = flag[1:]
-            i += 1
-            continue
-        if flag == "-unpause":
-            out["unpause"] = True
-            i += 1
-            continue
-        if flag not in (*_SPAWN_FLOATS, *_SPAWN_STRINGS, "-param", "-file", "-J"):
-            close = difflib.get_close_matches(flag, _SPAWN_OPTIONS, n=1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            issues.append(f"spawn_model {node.fqn}: option {flag!r} is not mapped{hint}")
-            # skip the unknown option's value too, if it has one
-            i += 2 if value is not None and not value.startswith("-") else 1
-            continue
-        if value is None:
-            issues.append(f"spawn_model {node.fqn}: {flag} needs a value")
-            break
-        if flag in _SPAWN_FLOATS:
-            try:
-                out[_SPAWN_FLOATS[flag]] = float(value)
-            except ValueError:
-                issues.append(f"spawn_model {node.fqn}: {flag} {value!r} is not a number")
-        elif flag in _SPAWN_STRINGS:
-            out[_SPAWN_STRINGS[flag]] = value
-        elif flag == "-param":
-            name = value if value.startswith("/") else f"{node.namespace.rstrip('/')}/{value}"
-            text = params.get(name)
-            if text is None:
-                issues.append(
-                    f"spawn_model {node.fqn}: -param {value}: parameter {name} is not set in "
-                    "this launch file"
-                )
-            source = None if text is None else str(text)
-        elif flag == "-file":
-            try:
-                source = read_text(value, what="the model file")
-            except TextFileError as exc:
-                issues.append(f"spawn_model {node.fqn}: -file: {exc}")
-        elif flag == "-J":
-            if i + 2 >= len(args):
-                issues.append(f"spawn_model {node.fqn}: -J needs a joint name and a position")
-                break
-            try:
-                joint_positions.append(float(args[i + 2]))
-                joint_names.append(value)
-            except ValueError:
-                issues.append(f"spawn_model {node.fqn}: -J {value} {args[i + 2]!r} is not a number")
-            i += 3
-            continue
-        i += 2
-    if "model" not in out:
-        issues.append(f"spawn_model {node.fqn}: -model NAME is required")
-    if source is None and not any("-param" in t or "-file" in t for t in issues):
-        issues.append(f"spawn_model {node.fqn}: give the robot with -param NAME or -file FILE")
-    if source is not None:
-        out["robot_description"] = source
-    if joint_names:
-        out["initial_joint_names"] = joint_names
-        out["initial_joint_positions"] = joint_positions
-    if packages:
-        out["packages"] = [f"{k}={v}" for k, v in sorted(packages.items())]
-    out.update(params.private(node.fqn))
-    return node.spec("spawn_model", out), issues
 
 
 def _parent(topic: str) -> str:
@@ -393,7 +338,13 @@ def _rviz_fixed_frame(config: str) -> str | None:
 
 
 def _rviz(node: RosNode, params: ParamServer, packages: Mapping[str, str]) -> Translation:
-    del packages
+    if importlib.util.find_spec("rerun") is None:
+        params.private(node.fqn)
+        params.notes.append(
+            f"{node.source}: rviz {node.fqn} is skipped: visnav's viewer needs rerun-sdk "
+            "(pip install 'visnav[viz]'); `visnav view` shows a recorded bag the same way"
+        )
+        return None, []
     issues: list[str] = []
     out: dict[str, Any] = params.private(node.fqn)
     args = list(node.args)
@@ -403,6 +354,11 @@ def _rviz(node: RosNode, params: ParamServer, packages: Mapping[str, str]) -> Tr
         value = args[i + 1] if i + 1 < len(args) else None
         if flag in ("-d", "--display-config") and value is not None:
             out["config"] = value
+            if not Path(value).is_file():
+                params.notes.append(
+                    f"{node.source}: rviz {node.fqn}: config {value} does not exist; the viewer "
+                    "draws in the TF root frame"
+                )
             frame = _rviz_fixed_frame(value)
             if frame is not None:
                 out.setdefault("fixed_frame", frame)
@@ -414,6 +370,9 @@ def _rviz(node: RosNode, params: ParamServer, packages: Mapping[str, str]) -> Tr
             )
             break
         i += 2
+    known = [f"{k}={v}" for k, v in sorted(packages.items()) if "://" not in str(v)]
+    if known:  # the robot model's package:// meshes
+        out.setdefault("packages", known)
     return node.spec("viz", out), issues
 
 
@@ -422,12 +381,15 @@ NODE_TRANSLATORS: Mapping[
 ] = {
     ("robot_state_publisher", "robot_state_publisher"): _robot_state_publisher,
     ("robot_state_publisher", "state_publisher"): _robot_state_publisher,
+    ("joint_state_publisher", "joint_state_publisher"): _joint_state_publisher,
+    ("joint_state_publisher_gui", "joint_state_publisher_gui"): _joint_state_publisher,
     ("tf2_ros", "static_transform_publisher"): _static_transform_publisher,
     ("tf", "static_transform_publisher"): _static_transform_publisher,
-    ("gazebo_ros", "spawn_model"): _spawn_model,
     ("depthimage_to_laserscan", "depthimage_to_laserscan"): _depthimage_to_laserscan,
     ("image_proc", "image_proc"): _image_proc,
     ("rviz", "rviz"): _rviz,
+    **GAZEBO_TRANSLATORS,  # gazebo_ros spawn_model (visnav.launch.ros_gazebo)
+    **CONTROLLER_TRANSLATORS,  # controller_manager spawner / controller_manager / unspawner
 }
 
 
@@ -448,132 +410,3 @@ def translate_node(node: RosNode, params: ParamServer, packages: Mapping[str, st
             f"<node pkg={node.pkg!r} type={node.type!r}> ({node.fqn}) has no visnav counterpart"
         ]
     return translate(node, params, packages)
-
-
-def _world(name: str) -> tuple[str | None, str | None]:
-    """Map empty_world's ``world_name`` to the sim's ``world`` (value, or an issue)."""
-    gazebo = VIRTUAL_PACKAGES["gazebo_ros"]
-    if name in _EMPTY_WORLDS or name in (f"{gazebo}/{w}" for w in _EMPTY_WORLDS[:2]):
-        return "empty", None
-    if name.startswith(gazebo) or (name.startswith("worlds/") and not Path(name).is_file()):
-        shown = name.replace(gazebo, "$(find gazebo_ros)")
-        return None, (
-            f"world_name {shown!r}: Gazebo's bundled worlds are not available in visnav (only "
-            "worlds/empty.world); give an SDF .world file or a visnav world name (office, forest)"
-        )
-    if name.endswith(_WORLD_SUFFIXES) or "/" in name:
-        path = Path(name)
-        if not path.is_file():
-            return None, f"world_name {name!r}: no such world file"
-        return str(path.resolve()), None
-    return name, None
-
-
-def empty_world_node(
-    args: Mapping[str, str], namespace: str, source: str, params: ParamServer
-) -> tuple[NodeSpec | None, list[str], list[str]]:
-    """The sim node that replaces gazebo_ros ``empty_world.launch``; sets ``/use_sim_time``.
-
-    Returns:
-        The node (None if the world cannot be mapped), problems, notes on what was ignored.
-    """
-    params.set("/use_sim_time", _bool(args["use_sim_time"]), source)
-    world, issue = _world(args["world_name"])
-    issues = [issue] if issue else []
-    notes: list[str] = []
-    if _bool(args["gui"]) and not _bool(args["headless"]):
-        notes.append(
-            f"{source}: empty_world gui:=true: Gazebo's client has no launch counterpart; watch "
-            "with `visnav view` (an rviz node maps to the viz node)"
-        )
-    ignored = [
-        f"{k}:={args[k]}"
-        for k in ("debug", "verbose", "recording", "gui_required")
-        if _bool(args[k])
-    ]
-    if args["extra_gazebo_args"].strip():
-        ignored.append(f"extra_gazebo_args:={args['extra_gazebo_args']!r}")
-    if args["physics"] != "ode":
-        ignored.append(f"physics:={args['physics']} (visnav simulates with MuJoCo)")
-    if not _bool(args["enable_ros_network"]):
-        ignored.append("enable_ros_network:=false")
-    if ignored:
-        notes.append(f"{source}: empty_world args ignored: {', '.join(ignored)}")
-    if world is None:
-        return None, issues, notes
-    sim_params: dict[str, Any] = {"world": world, "paused": _bool(args["paused"])}
-    if _bool(args["use_clock_frequency"]):
-        try:
-            sim_params["pub_clock_frequency"] = float(args["pub_clock_frequency"])
-        except ValueError:
-            issues.append(f"pub_clock_frequency {args['pub_clock_frequency']!r} is not a number")
-    respawn = _bool(args["respawn_gazebo"])
-    spec = NodeSpec(
-        executable="sim",
-        name="gazebo",
-        namespace=namespace,
-        params=sim_params,
-        process="own" if respawn else "shared",
-        respawn=respawn,
-        required=_bool(args["server_required"]),
-        source=source,
-    )
-    return spec, issues, notes
-
-
-def fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
-    """Give spawn_model's robot to the sim node (visnav builds the world and robot together).
-
-    Gazebo spawns robots into a running world; visnav's simulator composes the MuJoCo
-    model once, so a launch file's ``spawn_model`` becomes the ``sim`` node's ``robot``
-    (URDF text), ``spawn`` and ``robot_namespace``. The simulator publishes the robot's
-    state itself, so an imported ``robot_state_publisher`` is then left out.
-
-    Raises:
-        RoslaunchImportError: spawn_model nodes that cannot be folded (not exactly one
-            simulator and one spawned URDF): visnav has no spawn_model node.
-    """
-    sims = [n for n in nodes if n.executable == "sim"]
-    spawns = [n for n in nodes if n.executable == "spawn_model"]
-    if not spawns:
-        return nodes
-    if len(sims) != 1 or len(spawns) != 1 or "robot_description" not in spawns[0].params:
-        where = ", ".join(f"{n.source}: {n.namespace.rstrip('/')}/{n.name}" for n in spawns)
-        msg = (
-            f"spawn_model ({where}): visnav builds the world and its robots together, so a "
-            f"spawn_model needs exactly one simulator and one spawned URDF (found {len(sims)} "
-            f"gazebo / sim node(s) and {len(spawns)} spawn_model node(s)). Fix: import a file "
-            "with one gazebo_ros empty_world.launch and one spawn_model -urdf -param, or write "
-            "a visnav launch file whose sim node lists the robots (params robot / robots)"
-        )
-        raise RoslaunchImportError(msg)
-    sim, spawn = sims[0], spawns[0]
-    p = spawn.params
-    params = dict(sim.params)
-    params["robot"] = str(p["robot_description"])
-    params["spawn"] = [
-        float(p.get("x", 0.0)),
-        float(p.get("y", 0.0)),
-        float(p.get("z", 0.0)),
-        float(p.get("Y", 0.0)),
-    ]
-    if p.get("robot_namespace"):
-        params["robot_namespace"] = str(p["robot_namespace"])
-    folded = replace(sim, params=params)
-    notes.append(
-        f"spawn_model {spawn.namespace.rstrip('/')}/{spawn.name} ({spawn.source}) is folded into "
-        f"the sim node {sim.namespace.rstrip('/')}/{sim.name}: visnav builds world and robot "
-        "together"
-    )
-    out: list[NodeSpec] = []
-    for n in nodes:
-        if n is spawn:
-            continue
-        if n.executable == "robot_state_publisher":
-            notes.append(
-                f"robot_state_publisher {n.namespace.rstrip('/')}/{n.name} ({n.source}) is left "
-                "out: the sim publishes the spawned robot's /tf and /tf_static"
-            )
-            continue
-        out.append(folded if n is sim else n)
-    return out

@@ -2,7 +2,8 @@
 
 Read the way roslaunch reads it: ``<arg>`` (``default``, fixed ``value``, or
 required), ``$(arg)``, ``$(find)``, ``$(env)``, ``$(optenv)``, ``$(dirname)``,
-``$(anon)``; ``if`` / ``unless`` on every element; ``<group ns>``; ``<remap>``
+``$(anon)``, ``$(eval)`` (:mod:`visnav.launch.expression`); ``if`` / ``unless`` on every
+element; ``<group ns>``; ``<remap>``
 (scoped to its group, inherited by includes); ``<param>`` (``value`` with
 roslaunch's type guessing or ``type``, ``textfile``, ``command`` running xacro)
 and ``<rosparam command="load">`` fill one parameter server, which is read after
@@ -17,8 +18,11 @@ YAML files are loaded as such. ``<node>`` elements map as
 Everything that cannot be mapped (another ``<node>``, ``<env>``, ``<machine>``,
 ``<test>``, a ``command`` that is not xacro, ...) is collected, and one
 :class:`~visnav.launch.errors.RoslaunchImportError` lists all of it with the
-lines and what can be mapped. ROS 2 launch files (Python, or XML with
-``exec=``) are out of scope.
+lines and what can be mapped (or, with ``skip_unmapped``, each becomes a note and
+the rest imports). Every package the import knows (``--package``, the ``$(find)`` ed
+ones, the launch files' own) reaches the ``sim`` node as its ``packages`` parameter,
+for ``package://`` meshes and ``model://`` models. ROS 2 launch files (Python, or XML
+with ``exec=``) are out of scope.
 """
 
 from __future__ import annotations
@@ -31,7 +35,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
-from xml.parsers import expat
 
 from visnav.launch.description import LaunchDescription, NodeSpec
 from visnav.launch.errors import (
@@ -51,6 +54,7 @@ from visnav.launch.ros_nodes import (
     translate_node,
 )
 from visnav.launch.ros_planner_nodes import translation_order
+from visnav.launch.roslaunch_xml import XmlElement, parse_xml
 from visnav.launch.substitutions import (
     VIRTUAL_PACKAGES,
     SubstitutionContext,
@@ -82,60 +86,6 @@ _NODE_ATTRS = (
     *_SILENT_NODE_ATTRS,
     *_IGNORED_NODE_ATTRS,
 )
-
-
-# --------------------------------------------------------------------------- XML with lines
-@dataclass
-class XmlElement:
-    """An XML element with the line it starts on (ElementTree keeps no lines).
-
-    Attributes:
-        tag: the element name.
-        attrs: its attributes.
-        line: 1-based line of its start tag.
-        children: child elements.
-        text: the text directly inside it.
-    """
-
-    tag: str
-    attrs: dict[str, str]
-    line: int
-    children: list[XmlElement] = field(default_factory=list)
-    text: str = ""
-
-
-def parse_xml(text: str, source: str) -> XmlElement:
-    """Parse XML into :class:`XmlElement` s.
-
-    Raises:
-        LaunchParseError: the text is not well-formed XML (file and line given).
-    """
-    parser = expat.ParserCreate()
-    stack: list[XmlElement] = []
-    roots: list[XmlElement] = []
-
-    def start(tag: str, attrs: dict[str, str]) -> None:
-        element = XmlElement(tag, dict(attrs), parser.CurrentLineNumber)
-        (stack[-1].children if stack else roots).append(element)
-        stack.append(element)
-
-    def end(_tag: str) -> None:
-        stack.pop()
-
-    def data(chunk: str) -> None:
-        if stack:
-            stack[-1].text += chunk
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    parser.CharacterDataHandler = data
-    try:
-        parser.Parse(text, True)
-    except expat.ExpatError as exc:
-        reason = expat.errors.messages[exc.code] if exc.code else str(exc)
-        msg = f"{source}:{exc.lineno}: the launch file does not parse as XML: {reason}"
-        raise LaunchParseError(msg) from None
-    return roots[0]
 
 
 # --------------------------------------------------------------------------- import state
@@ -492,7 +442,9 @@ class _File:
             self.gazebo_include(file_text, args, inner, line)
             return
         path = Path(file_text)
-        if file_text.endswith((".launch", ".xml")) and not file_text.endswith(".launch.xml"):
+        if file_text.endswith((".launch", ".xml")):
+            # ROS 1 files (also ROBOTIS' includes/description.launch.xml) share this file's
+            # parameter server; ROS 2 XML is refused at its first <node exec=...>
             load_roslaunch_file(self.state, path, args, inner, self.ctx, chain, passed)
             return
         yaml_scope = Scope(
@@ -621,6 +573,7 @@ def load_roslaunch(
     chain: tuple[str, ...],
     include: IncludeLoader,
     description: LaunchDescription | None = None,
+    skip_unmapped: bool = False,
 ) -> list[NodeSpec]:
     """Import a roslaunch XML file (and what it includes) as visnav nodes.
 
@@ -632,6 +585,8 @@ def load_roslaunch(
         chain: the include chain so far, for messages.
         include: loads non-roslaunch includes (visnav YAML).
         description: the top-level description (receives notes and args).
+        skip_unmapped: leave out what cannot be mapped (each element and each node whose
+            translation has a problem becomes one note) instead of refusing the file.
 
     Raises:
         RoslaunchImportError: elements that cannot be mapped (all of them, in one error).
@@ -639,7 +594,8 @@ def load_roslaunch(
     """
     packages = {k: str(v) for k, v in scope.ctx.packages.items()}
     ctx = replace(scope.ctx, packages=packages)
-    state = _Import(params=ParamServer(), include=include, packages=dict(packages))
+    # one dict: packages found by $(find) while loading reach xacro and the simulator
+    state = _Import(params=ParamServer(), include=include, packages=packages)
     file = Path(path)
     load_roslaunch_file(
         state,
@@ -655,7 +611,10 @@ def load_roslaunch(
     for i, item in sorted(ros_nodes, key=lambda p: translation_order((p[1].pkg, p[1].type))):
         spec, issues = translate_node(item, state.params, state.packages)
         state.issues.extend(f"{item.source}: {text}" for text in issues)
-        translated[i] = spec
+        translated[i] = None if issues and skip_unmapped else spec
+    if skip_unmapped:
+        state.notes.extend(f"skipped (--skip-unmapped): {text}" for text in state.issues)
+        state.issues.clear()
     state.notes.extend(state.params.notes)
     nodes = [
         spec
@@ -670,6 +629,14 @@ def load_roslaunch(
         )
         raise RoslaunchImportError(msg)
     nodes = fold_spawns(nodes, state.notes)
+    known = [f"{k}={v}" for k, v in sorted(state.packages.items()) if "://" not in str(v)]
+    if known:  # package:// meshes and model:// of the packages' models, for the simulator
+        nodes = [
+            replace(n, params={**n.params, "packages": known})
+            if n.executable == "sim" and "packages" not in n.params
+            else n
+            for n in nodes
+        ]
     sim_time = state.params.get("/use_sim_time")
     if sim_time is not None:
         use = parse_bool(sim_time, "/use_sim_time", f"{state.params.source('/use_sim_time')}: ")

@@ -16,6 +16,10 @@ Forms (``$(name arg ...)``, nestable: ``$(arg $(arg which))``):
 ``$(equals A B)``, ``$(not-equals A B)``  ``true`` / ``false``: the two words compared as
                                         text (ROS 2 Iron's); quote a word that may be
                                         empty: ``$(not-equals '$(arg out)' '')``
+``$(eval EXPR)``                        roslaunch's expression language, evaluated safely
+                                        (:mod:`visnav.launch.expression`): ``$(eval
+                                        arg('model') == 'burger')``; ``$(...)`` inside it
+                                        are substituted first (ROS 2's rule)
 ======================================  ==============================================
 
 Text outside ``$(...)`` is kept as is; the result of a substitution is not scanned again.
@@ -26,11 +30,12 @@ from __future__ import annotations
 import difflib
 import os
 import shlex
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from visnav.launch.errors import LaunchArgError, LaunchParseError, where
+from visnav.launch.expression import EvalFunctions, evaluate_expression, format_value
 
 __all__ = [
     "SUBSTITUTIONS",
@@ -39,6 +44,7 @@ __all__ = [
     "find_package",
     "has_substitution",
     "own_package",
+    "ros_packages",
     "substitute",
     "visnav_share",
 ]
@@ -81,19 +87,49 @@ def own_package(path: Path) -> tuple[str, str] | None:
     return None
 
 
+_IGNORE_MARKERS = ("CATKIN_IGNORE", "AMENT_IGNORE", "COLCON_IGNORE")
+_MAX_CRAWL_DEPTH = 8
+
+
+def ros_packages(root: Path, *, max_depth: int = _MAX_CRAWL_DEPTH) -> Iterator[tuple[str, Path]]:
+    """The packages under ``root`` as rospack crawls them: ``(name, directory)``.
+
+    A directory with a ``package.xml`` is a package and is not searched further;
+    hidden directories and those with a ``CATKIN_IGNORE`` (``AMENT_IGNORE``,
+    ``COLCON_IGNORE``) file are skipped.
+    """
+    seen: set[str] = set()
+    for folder, dirs, files in os.walk(root, followlinks=True):
+        here = Path(folder)
+        depth = len(here.relative_to(root).parts)
+        real = os.path.realpath(folder)
+        if real in seen:  # a symlink loop, or a directory linked twice
+            dirs[:] = []
+            continue
+        seen.add(real)
+        if any(marker in files for marker in _IGNORE_MARKERS):
+            dirs[:] = []
+            continue
+        if "package.xml" in files:
+            dirs[:] = []
+            name = _package_name(here / "package.xml")
+            if name:
+                yield name, here
+            continue
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".")) if depth < max_depth else []
+
+
 def _search_ros_package_path(name: str, env: Mapping[str, str]) -> Path | None:
     for root_text in env.get("ROS_PACKAGE_PATH", "").split(os.pathsep):
         if not root_text:
             continue
-        root = Path(root_text)
-        if (root / "package.xml").is_file() and _package_name(root / "package.xml") == name:
-            return root
+        root = Path(root_text).expanduser()
         direct = root / name
-        if (direct / "package.xml").is_file():
+        if (direct / "package.xml").is_file() and _package_name(direct / "package.xml") == name:
             return direct
-        for xml in sorted(root.glob("*/package.xml")) + sorted(root.glob("*/*/package.xml")):
-            if _package_name(xml) == name:
-                return xml.parent
+        for found, folder in ros_packages(root):
+            if found == name:
+                return folder
     return None
 
 
@@ -123,15 +159,23 @@ def find_package(
         return str(visnav_share())
     if virtual and name in VIRTUAL_PACKAGES:
         return VIRTUAL_PACKAGES[name]
-    found = _search_ros_package_path(name, os.environ if env is None else env)
+    environ = os.environ if env is None else env
+    found = _search_ros_package_path(name, environ)
     if found is not None:
         return str(found.resolve())
     known = ["visnav", *packages, *(VIRTUAL_PACKAGES if virtual else ())]
-    close = difflib.get_close_matches(name, known, n=1)
+    on_path = [
+        pkg
+        for root in environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep)
+        if root
+        for pkg, _ in ros_packages(Path(root).expanduser())
+    ]
+    close = difflib.get_close_matches(name, [*known, *on_path], n=1)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
     msg = (
-        f"package {name!r} not found{hint}: visnav knows {', '.join(sorted(set(known)))}; give "
-        f"its directory with --package {name}=DIR or add its parent to ROS_PACKAGE_PATH"
+        f"package {name!r} not found{hint}: visnav knows {', '.join(sorted(set(known)))} and "
+        f"{len(set(on_path))} package(s) on ROS_PACKAGE_PATH; give its directory with "
+        f"--package {name}=DIR or add its parent to ROS_PACKAGE_PATH"
     )
     raise LaunchArgError(msg)
 
@@ -222,11 +266,15 @@ def _sub_optenv(ctx: SubstitutionContext, words: list[str]) -> str:
 def _sub_find(ctx: SubstitutionContext, words: list[str]) -> str:
     _words(ctx, "find-pkg-share", words, (1, 1))
     try:
-        return find_package(
+        found = find_package(
             words[0], packages=ctx.packages, env=ctx.environ(), virtual=ctx.virtual_packages
         )
     except LaunchArgError as exc:
         raise LaunchArgError(f"{ctx.prefix}{exc}") from None
+    if isinstance(ctx.packages, dict) and words[0] != "visnav" and "://" not in found:
+        # remembered: the simulator resolves the package's package:// and model:// URIs
+        ctx.packages.setdefault(words[0], found)
+    return found
 
 
 def _sub_dirname(ctx: SubstitutionContext, words: list[str]) -> str:
@@ -255,6 +303,11 @@ def _sub_not_equals(ctx: SubstitutionContext, words: list[str]) -> str:
     return "false" if words[0] == words[1] else "true"
 
 
+def _sub_eval_words(ctx: SubstitutionContext, words: list[str]) -> str:
+    # reached only through SUBSTITUTIONS lookups; _parse handles $(eval ...) itself
+    return _substitute_eval(" ".join(words), ctx)
+
+
 _QUOTED = frozenset({"equals", "not-equals"})  # words may be quoted (an empty one: '')
 
 
@@ -267,6 +320,7 @@ SUBSTITUTIONS: Mapping[str, Callable[[SubstitutionContext, list[str]], str]] = {
     "find": _sub_find,
     "dirname": _sub_dirname,
     "anon": _sub_anon,
+    "eval": _sub_eval_words,
     "equals": _sub_equals,
     "not-equals": _sub_not_equals,
 }
@@ -297,10 +351,56 @@ def _evaluate(body: str, ctx: SubstitutionContext) -> str:
             f"{ctx.prefix}unknown substitution $({body}){hint} visnav substitutes "
             f"{', '.join(f'$({k} ...)' for k in SUBSTITUTIONS)}"
         )
-        if kind == "eval":
-            msg += "; $(eval ...) is not supported: compute the value in an arg instead"
         raise LaunchParseError(msg)
     return handler(ctx, rest)
+
+
+def _eval_end(text: str, start: int, ctx: SubstitutionContext) -> int:
+    """The index of the ``)`` closing the ``$(eval`` whose body starts at ``start``.
+
+    Parentheses are counted outside quoted strings, so ``$(eval arg('a') + ')')`` works.
+    """
+    depth = 0
+    quote = ""
+    i = start
+    while i < len(text):
+        char = text[i]
+        if quote:
+            if char == "\\":
+                i += 1
+            elif char == quote:
+                quote = ""
+        elif char in "'\"":
+            quote = char
+        elif char == "(":
+            depth += 1
+        elif char == ")":
+            if depth == 0:
+                return i
+            depth -= 1
+        i += 1
+    msg = (
+        f"{ctx.prefix}unclosed $(eval ...) in {text!r}: its '(' has no matching ')' "
+        "(parentheses inside quotes are not counted)"
+    )
+    raise LaunchParseError(msg)
+
+
+def _eval_functions(ctx: SubstitutionContext) -> EvalFunctions:
+    return EvalFunctions(
+        arg=ctx.arg,
+        find=lambda name: _sub_find(ctx, [name]),
+        env=lambda name: _sub_env(ctx, [name]),
+        optenv=lambda name, default: ctx.environ().get(name, default),
+        anon=lambda name: _sub_anon(ctx, [name]),
+        dirname=lambda: _sub_dirname(ctx, []),
+    )
+
+
+def _substitute_eval(body: str, ctx: SubstitutionContext) -> str:
+    expression = _parse(body, 0, ctx, nested=False)[0] if has_substitution(body) else body
+    value = evaluate_expression(expression, _eval_functions(ctx), prefix=ctx.prefix)
+    return format_value(value)
 
 
 def _parse(text: str, start: int, ctx: SubstitutionContext, *, nested: bool) -> tuple[str, int]:
@@ -308,6 +408,11 @@ def _parse(text: str, start: int, ctx: SubstitutionContext, *, nested: bool) -> 
     out: list[str] = []
     i = start
     while i < len(text):
+        if text.startswith("$(eval", i) and text[i + 6 : i + 7] in (" ", "\t", "\n", ")"):
+            end = _eval_end(text, i + 6, ctx)
+            out.append(_substitute_eval(text[i + 6 : end], ctx))
+            i = end + 1
+            continue
         if text.startswith("$(", i):
             body, i = _parse(text, i + 2, ctx, nested=True)
             out.append(_evaluate(body, ctx))

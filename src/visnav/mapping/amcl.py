@@ -290,6 +290,10 @@ class Amcl:
         self._summarise()
         self.status = LocalizationStatus("initial", "global localisation: not converged yet")
 
+    def force_update(self) -> None:
+        """Run the next :meth:`update` without motion (amcl's ``request_nomotion_update``)."""
+        self._odom.force = True
+
     def set_map(self, field: LikelihoodField) -> None:
         """Use a new map; the particles stay (amcl re-initialises on a new map)."""
         self.field = field

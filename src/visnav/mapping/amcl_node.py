@@ -23,9 +23,14 @@ starts at ``(0, 0, 0)``).
 Where visnav differs: ``map -> odom`` is published only while the filter is localised
 (the scan fits the map at the estimate; see :mod:`visnav.mapping.amcl`), so a robot
 started outside its map, or lost, stops instead of driving on a wrong pose; the reason
-is logged as an error and latched on ``~/status``. There are no services
-(``global_localization``, ``request_nomotion_update``: visnav's graph has none):
-:meth:`AmclNode.global_localization` is the Python call.
+is logged as an error and latched on ``~/status``.
+
+Services (``std_srvs/srv/Empty``, relative names as ROS 1 amcl's): ``global_localization``
+(nav2 also: ``reinitialize_global_localization``) spreads the particles over the map's free
+space (:meth:`AmclNode.global_localization`); ``request_nomotion_update`` makes the next
+scan update the filter although the robot did not move (amcl's ``m_force_update``: the
+update runs when that scan arrives, not in the call). Before a map has arrived both only
+log a warning (amcl answers them without effect too).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from visnav.mapping.amcl_models import select_beams
 from visnav.mapping.costmap_ros import MAP_QOS
 from visnav.mapping.likelihood_field import LikelihoodField, LikelihoodFieldError
 from visnav.msgs.serde import get_message_class
+from visnav.msgs.srv import get_service_type
 from visnav.msgs.time import ns_to_time, time_to_ns
 from visnav.msgs.types import (
     Header,
@@ -123,6 +129,12 @@ class AmclNode(Node):
             self._pending_pose = (self.initial.x, self.initial.y, self.initial.yaw, None)
         self._last_status = ""
         self.updates = 0
+        empty = get_service_type("std_srvs/srv/Empty")
+        self.create_service(empty, "global_localization", self._on_global_localization)
+        self.create_service(
+            empty, "reinitialize_global_localization", self._on_global_localization
+        )  # nav2's name
+        self.create_service(empty, "request_nomotion_update", self._on_nomotion_update)
 
     # ------------------------------------------------------------------ inputs
     def _on_map(self, msg: OccupancyGrid) -> None:
@@ -196,6 +208,32 @@ class AmclNode(Node):
         self.filter.global_localization()
         self._report()
         return True
+
+    def request_nomotion_update(self) -> bool:
+        """Make the next scan update the filter without motion; False: no particles yet."""
+        if self.filter is None or not self.filter.initialized:
+            return False
+        self.filter.force_update()
+        return True
+
+    def _on_global_localization(self, request: object, response: Any) -> Any:
+        del request
+        if not self.global_localization():
+            self.get_logger().warning(
+                f"global_localization: no map on '{self.params.map_topic}' yet, nothing done"
+            )
+        else:
+            self.get_logger().info("global_localization: particles spread over the free space")
+        return response
+
+    def _on_nomotion_update(self, request: object, response: Any) -> Any:
+        del request
+        if not self.request_nomotion_update():
+            self.get_logger().warning(
+                "request_nomotion_update: the filter has no particles yet (no map or initial "
+                "pose), nothing done"
+            )
+        return response
 
     def _laser_pose(self, frame: str) -> tuple[float, float, float] | None:
         if frame not in self._lasers:

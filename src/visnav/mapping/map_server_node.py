@@ -8,20 +8,25 @@ transient local, depth 1), ``map`` (``nav_msgs/OccupancyGrid``) and ``map_metada
 
 Parameters: ``yaml_filename`` (required), ``frame_id`` ("map"), ``topic_name`` ("map").
 
-Where visnav differs: there is no ``static_map`` / ``map_server/load_map`` service (visnav's
-graph has no services); a launch file restarts the node with another ``yaml_filename``
-instead. A missing or invalid file is an error at start, naming the file and field.
+Services (``nav_msgs/srv/GetMap``, the loaded map): ``static_map`` (ROS 1 map_server's
+name, relative: ``/static_map`` in the root namespace) and ``~/map`` (nav2's:
+``/map_server/map``).
+
+Where visnav differs: there is no ``map_server/load_map`` service; a launch file restarts
+the node with another ``yaml_filename`` instead. A missing or invalid file is an error at
+start, naming the file and field.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.costmap_ros import MAP_QOS
 from visnav.mapping.map_io import MapFileError, OccupancyMap, load_map
+from visnav.msgs.srv import get_service_type
 from visnav.msgs.types import MapMetaData, OccupancyGrid
 
 if TYPE_CHECKING:
@@ -69,7 +74,16 @@ class MapServerNode(Node):
         self._meta_pub = self.create_publisher(MapMetaData, "map_metadata", MAP_QOS)
         self._map_pub.publish(self.grid)
         self._meta_pub.publish(self.grid.info)
+        get_map = get_service_type("nav_msgs/srv/GetMap")
+        self.create_service(get_map, "static_map", self._on_get_map)  # ROS 1's name
+        self.create_service(get_map, "~/map", self._on_get_map)  # nav2's
         info = self.grid.info
         self.get_logger().info(
             f"loaded {path}: {info.width} x {info.height} cells at {info.resolution:g} m/cell"
         )
+
+    def _on_get_map(self, request: object, response: Any) -> Any:
+        """``nav_msgs/GetMap``: the loaded map, as published on ``map``."""
+        del request
+        response.map = self.grid
+        return response

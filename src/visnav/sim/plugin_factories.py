@@ -28,9 +28,9 @@ from visnav.sim.plugins import (
     ImuPlugin,
     JointStatePlugin,
     OdometryPlugin,
-    QuadrotorPlugin,
     SimPlugin,
 )
+from visnav.sim.quadrotor_plugin import QuadrotorPlugin
 from visnav.sim.sensor_timing import sensor_seed
 from visnav.sim.vehicles.diff_drive import DiffDriveController
 from visnav.sim.vehicles.quadrotor import QuadrotorController, QuadrotorParams
@@ -69,10 +69,15 @@ __all__ = [
 SIM_PLUGINS: Mapping[str, str] = {
     "cameras": "visnav.sim.plugin_factories:make_camera",
     "imus": "visnav.sim.plugin_factories:make_imu",
+    "rays": "visnav.sim.ray_plugin:make_ray",
     "odometry": "visnav.sim.plugin_factories:make_p3d",
     "diff_drives": "visnav.sim.plugin_factories:make_diff_drive",
     "joint_state_publishers": "visnav.sim.plugin_factories:make_joint_state_publisher",
     "quadrotors": "visnav.sim.plugin_factories:make_quadrotor",
+    "imu_plugins": "visnav.sim.imu_model:make_imu_model",
+    "skid_steer_drives": "visnav.sim.bases:make_skid_steer",
+    "planar_moves": "visnav.sim.bases:make_planar_move",
+    "ros_control": "visnav.sim.ros_control:make_ros_control",
 }
 """Spec kind (a ``GazeboExtensions`` field) -> ``module:function`` factory, in step order."""
 
@@ -118,6 +123,8 @@ class RobotBuild:
         covered_joints: joints some joint-state publisher publishes.
         joint_states_topic: where robot_state_publisher reads joint states.
         quadrotor: the robot's quadrotor plugin, if it flies.
+        sim_node: the node that owns the simulation; its parameters are the ROS 1
+            parameter-server view ros_control controllers read (``controllers``, ...).
     """
 
     model: mujoco.MjModel
@@ -134,6 +141,7 @@ class RobotBuild:
     covered_joints: set[str] = field(default_factory=set)
     joint_states_topic: str = "/joint_states"
     quadrotor: QuadrotorPlugin | None = None
+    sim_node: Node | None = None
 
     def frame(self, frame_id: str) -> str:
         """``frame_id`` with the robot's prefix (``world`` and ``map`` stay as they are)."""
@@ -240,6 +248,10 @@ def make_diff_drive(build: RobotBuild, drive: DiffDriveSpec) -> SimPlugin | None
         (j, int(model.joint(joints[j]).qposadr[0]))
         for j in (*drive.left_joints, *drive.right_joints)
     ]
+    if drive.publish_wheel_joint_state:
+        spec = replace(spec, joint_states_topic=build.push(drive.joint_states_topic) or "")
+        build.covered_joints.update((*drive.left_joints, *drive.right_joints))
+        build.joint_states_topic = spec.joint_states_topic
     return DiffDrivePlugin(
         build.node(drive.plugin_name),
         spec,

@@ -25,18 +25,14 @@ never receive.)
 from __future__ import annotations
 
 import time
-from collections import deque
 from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
-from rosbags.typesys.stores.ros2_humble import (
-    trajectory_msgs__msg__MultiDOFJointTrajectory as MultiDOFJointTrajectory,
-)
 
 from visnav.description.rigid import matrix_to_quat_xyzw, quat_xyzw_to_matrix, rpy_to_matrix
 from visnav.graph.qos import QoSProfile
-from visnav.msgs.time import duration_to_ns, ns_to_time
+from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import (
     CameraInfo,
     Header,
@@ -47,7 +43,6 @@ from visnav.msgs.types import (
     Point,
     PointCloud2,
     Pose,
-    PoseStamped,
     PoseWithCovariance,
     Quaternion,
     Transform,
@@ -58,9 +53,7 @@ from visnav.msgs.types import (
 )
 from visnav.sim.sensor_timing import SensorClock
 from visnav.sim.vehicles._state import BodyReader
-from visnav.sim.vehicles.quadrotor import PositionCommand
 from visnav.tf.ros import TransformBroadcaster
-from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -74,12 +67,10 @@ if TYPE_CHECKING:
         ImuSpec,
         JointStatePublisherSpec,
         OdometrySpec,
-        QuadrotorSpec,
     )
     from visnav.graph.node import Node
     from visnav.sim.camera import CameraSensor
     from visnav.sim.vehicles.diff_drive import DiffDriveController
-    from visnav.sim.vehicles.quadrotor import QuadrotorController
     from visnav.tf.robot_state import RobotStateModel
 
 __all__ = [
@@ -90,10 +81,7 @@ __all__ = [
     "ImuPlugin",
     "JointStatePlugin",
     "OdometryPlugin",
-    "QuadrotorPlugin",
-    "MultiDOFJointTrajectory",
     "SimPlugin",
-    "trajectory_point_command",
 ]
 
 SENSOR_QOS = QoSProfile(depth=5)
@@ -110,13 +98,6 @@ def _quaternion(q: Sequence[float]) -> Quaternion:
 
 def _vector(v: Sequence[float] | NDArray[np.float64]) -> Vector3:
     return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-
-def _command_yaw(q: Quaternion) -> float:
-    """Heading of a commanded orientation; an unset (all-zero) quaternion means heading 0."""
-    if q.x == 0.0 and q.y == 0.0 and q.z == 0.0 and q.w == 0.0:
-        return 0.0
-    return yaw_from_quaternion(q)
 
 
 class SimPlugin:
@@ -139,6 +120,9 @@ class SimPlugin:
 
     def after_step(self, data: mujoco.MjData, now_ns: int) -> None:
         """Read acceleration-stage sensors of ``now_ns`` (after ``mj_step2``)."""
+
+    def reset(self, data: mujoco.MjData, now_ns: int) -> None:
+        """Gazebo's plugin ``Reset()`` (``/gazebo/reset_world``): the bodies are back at start."""
 
     def close(self) -> None:
         """Destroy the node."""
@@ -168,7 +152,10 @@ class CameraPlugin(SimPlugin):
     """``libgazebo_ros_camera.so`` (and the depth plugins): renders when due and publishes.
 
     An image and its camera_info share one header (stamp and frame_id). Rendering
-    happens only at the sensor's update rate, and only while something subscribes to
+    happens only at the sensor's update rate (0: every step), further throttled by the
+    ROS 1 plugin's ``<updateRate>`` (``plugin_update_rate``: a frame is made only when
+    both are due, as gazebo_ros_camera_utils publishes the sensor's frames at most that
+    often), and only while something subscribes to
     one of the camera's topics (as gazebo_ros_camera activates its sensor on connect):
     a due frame nobody wants is counted in ``skipped`` and not rendered. Of a frame,
     only the outputs with a subscriber are made (the colour image, the depth image with
@@ -189,6 +176,12 @@ class CameraPlugin(SimPlugin):
         self.spec = spec
         self.sensor = sensor
         self.clock = SensorClock(spec.update_rate, start_ns=start_ns)
+        # ROS 1 <updateRate>: publishes the sensor's frames at most this often
+        self.throttle = (
+            SensorClock(spec.plugin_update_rate, start_ns=start_ns)
+            if spec.plugin_update_rate > 0.0
+            else None
+        )
         self.render_ns = 0
         self.frames = 0
         self.skipped = 0
@@ -235,6 +228,8 @@ class CameraPlugin(SimPlugin):
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Measure at ``now_ns`` when due and wanted, and publish."""
         if not self.clock.due(now_ns):
+            return
+        if self.throttle is not None and not self.throttle.due(now_ns):
             return
         wanted, image, depth, points = self._outputs()
         if not wanted:
@@ -438,7 +433,10 @@ class DiffDrivePlugin(SimPlugin):
 
     The wheels are driven by :class:`~visnav.sim.vehicles.diff_drive.DiffDriveController`
     (its docstring lists where it differs from Gazebo). With ``publish_wheel_tf``
-    the wheel joints' transforms go on ``/tf`` at the plugin's update rate.
+    the wheel joints' transforms go on ``/tf`` at the plugin's update rate; with
+    ``publish_wheel_joint_state`` (ROS 1) the wheel positions go on ``joint_states``
+    (right wheel first, positions only, as the ROS 1 plugin), where
+    robot_state_publisher turns them into the wheel frames.
 
     Args:
         node: the plugin's node.
@@ -469,10 +467,25 @@ class DiffDrivePlugin(SimPlugin):
         self._tf = TransformBroadcaster(node) if publish_tf else None
         self._wheels = list(wheels) if spec.publish_wheel_tf else []
         self._robot_state = robot_state
+        self._joint_states = None
+        if spec.publish_wheel_joint_state and wheels:
+            # gazebo_ros_diff_drive (ROS 1) lists the right wheel, then the left
+            pairs = len(wheels) // 2
+            order = [w for i in range(pairs) for w in (wheels[pairs + i], wheels[i])]
+            self._wheel_names = [joint for joint, _ in order]
+            self._wheel_qpos = np.array([adr for _, adr in order], dtype=np.int64)
+            self._joint_states = node.create_publisher(
+                JointState, spec.joint_states_topic, DEFAULT_QOS
+            )
         node.create_subscription(Twist, spec.command_topic, self._on_cmd_vel, DEFAULT_QOS)
 
     def _on_cmd_vel(self, msg: Twist) -> None:
         self.controller.set_command(float(msg.linear.x), float(msg.angular.z))
+
+    def reset(self, data: mujoco.MjData, now_ns: int) -> None:
+        """As gazebo_ros_diff_drive's ``Reset()``: command and encoder odometry back to zero."""
+        del data, now_ns
+        self.controller.reset()
 
     def control(self, data: mujoco.MjData, now_ns: int) -> None:
         """Apply the controller for the step at ``now_ns``."""
@@ -481,6 +494,17 @@ class DiffDrivePlugin(SimPlugin):
             return
         if self._odom is not None:
             self._odom.publish(sample.to_msg())
+        if self._joint_states is not None:
+            empty = np.zeros(0, dtype=np.float64)
+            self._joint_states.publish(
+                JointState(
+                    header=_header(now_ns, ""),
+                    name=list(self._wheel_names),
+                    position=np.array(data.qpos[self._wheel_qpos], dtype=np.float64),
+                    velocity=empty,
+                    effort=empty,
+                )
+            )
         if self._tf is None:
             return
         transforms = [sample.to_transform()] if self.spec.publish_odom_tf else []
@@ -553,116 +577,3 @@ class JointStatePlugin(SimPlugin):
                 effort=np.asarray(data.qfrc_applied[dof] + data.qfrc_actuator[dof]),
             )
         )
-
-
-# --------------------------------------------------------------------------- quadrotor
-
-
-def trajectory_point_command(
-    msg: MultiDOFJointTrajectory, index: int, *, stamp_ns: int = 0
-) -> PositionCommand:
-    """The :class:`PositionCommand` of one point of a ``MultiDOFJointTrajectory``.
-
-    ``transforms[0]`` gives position and yaw, ``velocities[0]`` velocity and yaw rate
-    (``angular.z``), ``accelerations[0]`` the feed-forward acceleration; a missing
-    velocity or acceleration is zero (RotorS' convention). NaN components drop the
-    term, as in ``so3_control``.
-    """
-    point = msg.points[index]
-    transform = point.transforms[0]
-    t = transform.translation
-    velocity = point.velocities[0] if len(point.velocities) > 0 else None
-    accel = point.accelerations[0] if len(point.accelerations) > 0 else None
-    return PositionCommand(
-        stamp_ns=stamp_ns,
-        frame_id=msg.header.frame_id or "world",
-        position=(float(t.x), float(t.y), float(t.z)),
-        velocity=(
-            (float(velocity.linear.x), float(velocity.linear.y), float(velocity.linear.z))
-            if velocity is not None
-            else (0.0, 0.0, 0.0)
-        ),
-        acceleration=(
-            (float(accel.linear.x), float(accel.linear.y), float(accel.linear.z))
-            if accel is not None
-            else (0.0, 0.0, 0.0)
-        ),
-        yaw=_command_yaw(transform.rotation),
-        yaw_dot=float(velocity.angular.z) if velocity is not None else 0.0,
-    )
-
-
-class QuadrotorPlugin(SimPlugin):
-    """``libvisnav_quadrotor.so``: position commands in, thrust and moments on the body.
-
-    Commands arrive three ways (each replaces the previous one):
-
-    * ``trajectory_topic`` (``trajectory_msgs/MultiDOFJointTrajectory``, RotorS'
-      ``command/trajectory``): the first point applies at once, each later point
-      ``time_from_start`` after it (relative to the first point), in sim time;
-    * ``pose_topic`` (``geometry_msgs/PoseStamped``, RotorS' ``command/pose``):
-      hold that position and yaw;
-    * :meth:`set_command` with a :class:`~visnav.sim.vehicles.quadrotor.PositionCommand`
-      (the fields of ``quadrotor_msgs/PositionCommand``), from Python.
-
-    Without a command the vehicle holds where it started.
-
-    Args:
-        node: the plugin's node.
-        spec: the plugin with its final topics.
-        controller: the SO(3) controller flying the body.
-    """
-
-    def __init__(self, node: Node, spec: QuadrotorSpec, controller: QuadrotorController) -> None:
-        super().__init__(node, spec.plugin_name)
-        self.spec = spec
-        self.controller = controller
-        self._queue: deque[tuple[int, PositionCommand]] = deque()
-        self._now_ns = 0
-        node.create_subscription(
-            MultiDOFJointTrajectory, spec.trajectory_topic, self._on_trajectory, DEFAULT_QOS
-        )
-        node.create_subscription(PoseStamped, spec.pose_topic, self._on_pose, DEFAULT_QOS)
-
-    def set_command(self, command: PositionCommand) -> None:
-        """Track ``command`` from the next physics step on (drops queued trajectory points)."""
-        self._queue.clear()
-        self.controller.set_command(command)
-
-    def _on_trajectory(self, msg: MultiDOFJointTrajectory) -> None:
-        points = list(msg.points)
-        usable = [i for i, p in enumerate(points) if len(p.transforms) > 0]
-        if len(usable) < len(points):
-            self.node.get_logger().warning(
-                f"{self.spec.trajectory_topic}: {len(points) - len(usable)} of {len(points)} "
-                "trajectory points have no transforms[0] (position and yaw) and were ignored"
-            )
-        if not usable:
-            if not points:
-                self.node.get_logger().warning(
-                    f"{self.spec.trajectory_topic}: a trajectory without points was ignored"
-                )
-            return
-        self._queue.clear()
-        first = duration_to_ns(points[usable[0]].time_from_start)
-        for i in usable:
-            due = self._now_ns + duration_to_ns(points[i].time_from_start) - first
-            self._queue.append((due, trajectory_point_command(msg, i, stamp_ns=due)))
-
-    def _on_pose(self, msg: PoseStamped) -> None:
-        p = msg.pose.position
-        self.set_command(
-            PositionCommand.hold(
-                (float(p.x), float(p.y), float(p.z)),
-                _command_yaw(msg.pose.orientation),
-                stamp_ns=self._now_ns,
-            )
-        )
-
-    def control(self, data: mujoco.MjData, now_ns: int) -> None:
-        """Apply the controller for the step at ``now_ns``."""
-        self._now_ns = now_ns  # commands arriving in this step's spin start now
-        queue = self._queue
-        while queue and queue[0][0] <= now_ns:
-            self.controller.set_command(queue.popleft()[1])
-        self.controller.step(data)

@@ -22,6 +22,9 @@ Mapping to MuJoCo:
   mass; ``<gazebo reference><material>`` colours and ``mu1`` friction apply;
   the robot's own bodies do not collide with each other (Gazebo's default
   ``self_collide`` false);
+* mesh files (Collada, OBJ, STL, MSH; :mod:`visnav.description.mesh_files`) become one
+  geom per coloured part, from vertex data; a visual without a URDF or ``<gazebo>``
+  colour shows the mesh's own colours; collisions use each part's convex hull;
 * each camera sensor becomes a MuJoCo camera at its link and ``<pose>`` whose
   intrinsics reproduce the published K (see :mod:`visnav.sim.camera`); each
   camera and IMU also gets a site in the sensor frame, and each IMU MuJoCo
@@ -43,6 +46,9 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from visnav.description.errors import MeshFileError
+from visnav.description.mesh_convex import thickened
+from visnav.description.mesh_files import load_mesh
 from visnav.description.rigid import R_SENSOR_MJCAM, make_transform, matrix_to_quat_wxyz
 from visnav.description.robot import RobotDescription
 from visnav.description.urdf import (
@@ -58,6 +64,7 @@ from visnav.description.urdf import (
     iter_links_depth_first,
 )
 from visnav.sim.camera import configure_mujoco_camera
+from visnav.sim.mesh_geoms import add_mesh_asset
 
 __all__ = ["RobotHandles", "add_robot_to_spec"]
 
@@ -94,15 +101,71 @@ class RobotHandles:
 # --------------------------------------------------------------------------- MuJoCo
 
 
-def _add_geom(
+_MeshAssets = dict[tuple[str, tuple[float, float, float], bool], list[tuple[str, Any]]]
+
+
+def _mesh_assets(
+    spec: mujoco.MjSpec, geometry: Mesh, meshes: _MeshAssets, prefix: str, *, visual: bool
+) -> list[tuple[str, Any]]:
+    """MuJoCo mesh assets of a mesh file: ``[(name, rgba or None)]``.
+
+    Visual: one per coloured part. Collision: one of all vertices (MuJoCo collides with
+    its convex hull, as it did with the whole file); a flat mesh gets a 1 mm thickness.
+    """
+    key = (str(geometry.path), geometry.scale, visual)
+    if key not in meshes:
+        try:
+            data = load_mesh(geometry.path, geometry.scale)
+        except MeshFileError as exc:
+            msg = f"robot mesh {geometry.filename!r}: {exc}"
+            raise RobotDescriptionError(msg) from None
+        for text in data.warnings:
+            _LOG.warning("%s", text)
+        assets = []
+        if visual:
+            for i, part in enumerate(data.parts):
+                name = f"{prefix}mesh{len(meshes)}.{i}:{geometry.path.stem}"
+                assets.append((add_mesh_asset(spec, name, part.vertices, part.faces), part.rgba))
+        else:
+            name = f"{prefix}mesh{len(meshes)}:{geometry.path.stem}"
+            points = thickened(data.vertices, 1e-3)
+            assets.append((add_mesh_asset(spec, name, points), None))
+        meshes[key] = assets
+    return meshes[key]
+
+
+def _add_geoms(
     body: Any,
     spec: mujoco.MjSpec,
     geometry: Geometry,
     t_link_geom: NDArray[np.float64],
     name: str,
-    meshes: dict[tuple[str, tuple[float, float, float]], str],
+    meshes: _MeshAssets,
     prefix: str,
-) -> Any:
+    *,
+    visual: bool,
+) -> list[tuple[Any, Any]]:
+    """Geoms of one URDF geometry: ``[(geom, the mesh part's own rgba or None)]``."""
+    pos = t_link_geom[:3, 3].tolist()
+    quat = list(matrix_to_quat_wxyz(t_link_geom[:3, :3]))
+    if isinstance(geometry, Mesh):
+        out = []
+        assets = _mesh_assets(spec, geometry, meshes, prefix, visual=visual)
+        for i, (mesh_name, rgba) in enumerate(assets):
+            geom = body.add_geom(
+                name=name if len(assets) == 1 else f"{name}.{i}",
+                type=mujoco.mjtGeom.mjGEOM_MESH,
+                meshname=mesh_name,
+                pos=pos,
+                quat=quat,
+            )
+            geom.density = 0.0
+            out.append((geom, rgba))
+        return out
+    return [(_add_geom(body, geometry, t_link_geom, name), None)]
+
+
+def _add_geom(body: Any, geometry: Geometry, t_link_geom: NDArray[np.float64], name: str) -> Any:
     geom = body.add_geom(name=name)
     pos = t_link_geom[:3, 3]
     rot = t_link_geom[:3, :3]
@@ -118,14 +181,6 @@ def _add_geom(
     elif isinstance(geometry, Sphere):
         geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
         geom.size = [geometry.radius, 0.0, 0.0]
-    elif isinstance(geometry, Mesh):
-        key = (str(geometry.path), geometry.scale)
-        if key not in meshes:
-            mesh_name = f"{prefix}mesh{len(meshes)}:{geometry.path.stem}"
-            spec.add_mesh(name=mesh_name, file=str(geometry.path), scale=list(geometry.scale))
-            meshes[key] = mesh_name
-        geom.type = mujoco.mjtGeom.mjGEOM_MESH
-        geom.meshname = meshes[key]
     geom.pos = pos.tolist()
     geom.quat = list(matrix_to_quat_wxyz(rot))
     geom.density = 0.0
@@ -218,7 +273,7 @@ def add_robot_to_spec(
     t_world_spawn = make_transform((x, y, z), (0.0, 0.0, yaw))
     props = robot.gazebo.link_properties
     warnings: list[str] = []
-    meshes: dict[tuple[str, tuple[float, float, float]], str] = {}
+    meshes: _MeshAssets = {}
     bodies: dict[str, str] = {}
     mj_bodies: dict[str, Any] = {}
     joints: dict[str, str] = {}
@@ -273,7 +328,12 @@ def add_robot_to_spec(
             joints[joint.name] = mj_joint.name
         link_props = props.get(link.name)
         for i, visual in enumerate(link.visuals):
-            geom = _add_geom(
+            rgba = None
+            if link_props is not None and link_props.rgba is not None:
+                rgba = link_props.rgba
+            elif visual.material is not None and visual.material.rgba is not None:
+                rgba = visual.material.rgba
+            for geom, part_rgba in _add_geoms(
                 body,
                 spec,
                 visual.geometry,
@@ -281,18 +341,14 @@ def add_robot_to_spec(
                 f"{body_name}:visual{i}",
                 meshes,
                 prefix,
-            )
-            rgba = None
-            if link_props is not None and link_props.rgba is not None:
-                rgba = link_props.rgba
-            elif visual.material is not None and visual.material.rgba is not None:
-                rgba = visual.material.rgba
-            geom.rgba = list(rgba or _DEFAULT_RGBA)
-            geom.group = 1
-            geom.contype = 0
-            geom.conaffinity = 0
+                visual=True,
+            ):
+                geom.rgba = list(rgba or part_rgba or _DEFAULT_RGBA)
+                geom.group = 1
+                geom.contype = 0
+                geom.conaffinity = 0
         for i, collision in enumerate(link.collisions):
-            geom = _add_geom(
+            for geom, _ in _add_geoms(
                 body,
                 spec,
                 collision.geometry,
@@ -300,14 +356,15 @@ def add_robot_to_spec(
                 f"{body_name}:collision{i}",
                 meshes,
                 prefix,
-            )
-            geom.group = 3
-            geom.contype = 1
-            geom.conaffinity = 1
-            if link_props is not None and link_props.mu1 is not None:
-                friction = list(geom.friction)
-                friction[0] = link_props.mu1
-                geom.friction = friction
+                visual=False,
+            ):
+                geom.group = 3
+                geom.contype = 1
+                geom.conaffinity = 1
+                if link_props is not None and link_props.mu1 is not None:
+                    friction = list(geom.friction)
+                    friction[0] = link_props.mu1
+                    geom.friction = friction
         if link.collisions:
             colliding.append(body_name)
     for joint in urdf.joints.values():

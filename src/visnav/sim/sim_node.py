@@ -10,13 +10,21 @@ Parameters (ROS names; all optional):
 ``spawn``           ``[]``           ``[x, y, z, yaw]``; empty: the world's spawn point
 ``robot_namespace`` ``/``            pushed onto every topic of the robot
 ``frame_prefix``    ``""``           prepended to the robot's TF frames
+``packages``        ``[]``           ``name=DIR`` package directories (``package://``,
+                                     ``$(find pkg)``, ``model://`` of the packages' models)
+``skip_missing_models`` ``false``    an SDF world loads without its models not found
 ``seed``            ``-1``           sensor noise and world seed; -1: the world's own, noise 0
 ``realtime``        ``true``         pace sim time to the wall clock
 ``real_time_factor`` ``1.0``         target sim / wall ratio when ``realtime``
 ``duration``        ``0.0``          sim seconds to run; 0: until shutdown
 ``contact_rate``    ``0.0``          Hz: each robot's contacts on ``bumper_states``; 0: off
 ``lockstep``        ``false``        a launch drives the shared process lock-step (below)
+``controllers``     ``[]``           ros_control controllers to start (``spawner``)
+``stopped_controllers`` ``[]``       ros_control controllers only loaded (``--stopped``)
 ==================  ===============  =====================================================
+
+A controller's configuration is the parameters ``<name>.<key>`` (ROS 1's
+``/<name>/<key>``, ``/`` as ``.``); see :mod:`visnav.sim.ros_control`.
 
 ``require_wheel_odometry`` (default false) refuses a robot whose odometry is not from wheel
 encoders (no diff drive, or its ``odometry_source`` world, i.e. ground truth like p3d), with
@@ -57,6 +65,7 @@ from visnav.graph.param_dataclass import declare_params, param
 from visnav.safe_yaml import load_yaml
 from visnav.sim.errors import SimulatorNodeError
 from visnav.sim.guards import SimulationUnstableError, refuse_second_simulation
+from visnav.sim.ros_control import RosControlError, check_spawned_controllers
 from visnav.sim.simulator import RobotSpawn, SimStats, Simulator
 
 if TYPE_CHECKING:
@@ -77,6 +86,21 @@ def _assignments(values: Sequence[Any], parameter: str) -> dict[str, str]:
             msg = f"parameter {parameter}: {item!r} is not name:=value. Fix: e.g. 'camera_rate:=15'"
             raise SimulatorNodeError(msg)
         out[name.strip()] = value
+    return out
+
+
+def _packages(values: Sequence[Any]) -> dict[str, str]:
+    """The ``packages`` parameter (``name=DIR`` strings) as ``name -> DIR``."""
+    out: dict[str, str] = {}
+    for item in values:
+        name, sep, folder = str(item).partition("=")
+        if not sep or not name.strip() or not folder.strip():
+            msg = (
+                f"parameter packages: {item!r} is not name=DIR. Fix: e.g. "
+                "'turtlebot3_description=/ws/src/turtlebot3/turtlebot3_description'"
+            )
+            raise SimulatorNodeError(msg)
+        out[name.strip()] = folder.strip()
     return out
 
 
@@ -124,6 +148,10 @@ class SimParams:
     spawn: tuple[float, ...] = param((0.0,), description="[x, y, z, yaw]; empty: the world's spawn")
     robot_namespace: str = param("/", description="pushed onto every topic of the robot")
     frame_prefix: str = param("", description="prepended to the robot's TF frames")
+    packages: tuple[str, ...] = param(("",), description="name=DIR package directories")
+    skip_missing_models: bool = param(
+        False, description="load an SDF world without the models not found"
+    )
     seed: int = param(-1, description="sensor noise and world seed; -1: the world's, noise 0")
     realtime: bool = param(True, description="pace sim time to the wall clock")
     real_time_factor: float = param(1.0, description="target sim / wall ratio when realtime")
@@ -158,6 +186,7 @@ class SimulatorNode(Node):
             raise
         self._wall0 = time.perf_counter()
         self._sim0 = self.sim.now_ns
+        self._pace0 = (self._wall0, self._sim0)  # wall and sim time pacing counts from
         steady = Clock(ClockType.STEADY_TIME)
         self._timer = self.create_timer(self.sim.timestep_ns * 1e-9, self._advance, clock=steady)
 
@@ -170,6 +199,7 @@ class SimulatorNode(Node):
         if spawn and len(spawn) != 4:
             msg = f"parameter spawn is {spawn}: expected [x, y, z, yaw] or []"
             raise SimulatorNodeError(msg)
+        self.packages = _packages(p["packages"])
         world_params: dict[str, Any] = {}
         for name, text in _assignments(p["world_params"], "world_params").items():
             source = f"parameter world_params: {name}:={text!r}"
@@ -177,7 +207,11 @@ class SimulatorNode(Node):
                 text, source=source, what="the value", error=SimulatorNodeError
             )
         world = load_world(
-            str(p["world"]), params=world_params or None, seed=None if seed < 0 else seed
+            str(p["world"]),
+            params=world_params or None,
+            seed=None if seed < 0 else seed,
+            packages=self.packages or None,
+            skip_missing_models=bool(p["skip_missing_models"]),
         )
         robot = RobotSpawn(
             source=str(p["robot"]),
@@ -185,6 +219,7 @@ class SimulatorNode(Node):
             spawn=(spawn[0], spawn[1], spawn[2], spawn[3]) if spawn else None,
             namespace=str(p["robot_namespace"]),
             frame_prefix=str(p["frame_prefix"]),
+            packages=self.packages or None,
         )
         sim = Simulator(
             world,
@@ -196,6 +231,11 @@ class SimulatorNode(Node):
             node=self,
             contact_rate=float(p["contact_rate"]),
         )
+        try:  # spawned ros_control controllers that no robot's controller manager took
+            check_spawned_controllers(self, [p for r in sim.robots for p in r.plugins])
+        except RosControlError:
+            sim.close()
+            raise
         if bool(p["require_wheel_odometry"]):
             try:
                 check_wheel_odometry(sim)
@@ -207,7 +247,7 @@ class SimulatorNode(Node):
     def _parameters(self) -> Mapping[str, Any]:
         values = dataclasses.asdict(declare_params(self, SimParams))
         # array defaults carry a typed placeholder; an untouched one means "empty"
-        for name in ("world_params", "robot_args", "spawn"):
+        for name in ("world_params", "robot_args", "spawn", "packages"):
             if list(values[name]) == list(getattr(SimParams, name)):
                 values[name] = []
         return values
@@ -233,9 +273,13 @@ class SimulatorNode(Node):
             self._timer.cancel()
             _LOG.info("%s: %s", self.get_fully_qualified_name(), sim.stats.summary())
             return
+        if sim.paused:  # /gazebo/pause_physics: pace from the unpause on, no catching up
+            self._pace0 = (time.perf_counter(), sim.now_ns)
+            return
         if sim.realtime:
-            wall = time.perf_counter() - self._wall0
-            target = self._sim0 + round(wall * sim.real_time_factor * 1e9)
+            wall0, sim0 = self._pace0
+            wall = time.perf_counter() - wall0
+            target = sim0 + round(wall * sim.real_time_factor * 1e9)
             ahead = min(target - sim.now_ns, round(_MAX_CATCH_UP_S * 1e9))
             steps = max(0, ahead // sim.timestep_ns)
             if steps:

@@ -15,7 +15,8 @@ plugin of a robot becomes a graph node in the given context (see
 ground truth, the differential drive, IMUs, joint states, the quadrotor, and a
 robot_state_publisher (``robot_description``, ``/tf_static`` for fixed joints,
 ``/tf`` from the joint states). A node ``/sim`` publishes ``/clock``
-(``rosgraph_msgs/Clock``).
+(``rosgraph_msgs/Clock``) and serves gazebo_ros' ``/gazebo/*`` services
+(:mod:`visnav.sim.gazebo_services`).
 
 Time. Physics advances in fixed steps of the world's ``physics.timestep``;
 sim time is the integer ``k * dt`` in nanoseconds. Each step: ``mj_step1``
@@ -67,7 +68,9 @@ from visnav.msgs.types import Clock
 from visnav.sim.camera import RenderContext, render_layout
 from visnav.sim.contact_sensor import ContactSensor
 from visnav.sim.errors import SimulatorError
+from visnav.sim.gazebo_services import GazeboServices
 from visnav.sim.guards import InstabilityMonitor, check_spawn_pose, route_mujoco_warnings
+from visnav.sim.model_states import model_states_publisher
 from visnav.sim.plugin_factories import (
     RobotBuild,
     build_plugins,
@@ -75,7 +78,8 @@ from visnav.sim.plugin_factories import (
     publishes,
     push_namespace,
 )
-from visnav.sim.plugins import CameraPlugin, QuadrotorPlugin, SimPlugin
+from visnav.sim.plugins import CameraPlugin, SimPlugin
+from visnav.sim.quadrotor_plugin import QuadrotorPlugin
 from visnav.sim.robot import RobotHandles, add_robot_to_spec
 from visnav.sim.sensor_timing import SensorClock
 from visnav.sim.vehicles.quadrotor import PositionCommand
@@ -284,6 +288,9 @@ class Simulator:
         self._clock = SensorClock(clock_rate)
         self._pace_ref = (0, 0)
         self._closed = False
+        self._paused = False  # /gazebo/pause_physics: run() spins without stepping
+        self._in_step = False  # callbacks run inside a step (lock-step spin_some)
+        self._edits: list[Callable[[], None]] = []  # state edits deferred to the step's end
         self.robots: list[SimRobot] = []
         cameras = [c for desc, *_ in placed for c in desc.gazebo.cameras if publishes(c)]
         if cameras:
@@ -303,12 +310,14 @@ class Simulator:
         except Exception:
             self.close()
             raise
-        plugins = [p for r in self.robots for p in r.plugins]
+        self.model_states = model_states_publisher(self)  # /gazebo/model_states, link_states
+        plugins = [p for r in self.robots for p in r.plugins] + [self.model_states]
         self._sense = [p.sense for p in plugins if type(p).sense is not SimPlugin.sense]
         self._control = [p.control for p in plugins if type(p).control is not SimPlugin.control]
         self._after = [
             p.after_step for p in plugins if type(p).after_step is not SimPlugin.after_step
         ]
+        self.gazebo_services = GazeboServices(self)  # /gazebo/* services on the node
 
     # ------------------------------------------------------------------ building
 
@@ -380,6 +389,7 @@ class Simulator:
             state_model=state_model,
             render_context=self._render_ctx,
             joint_states_topic=push_namespace(ns, "/joint_states") or "/joint_states",
+            sim_node=self._node,
         )
         try:
             robot.plugins.extend(build_plugins(build))
@@ -408,6 +418,11 @@ class Simulator:
         return robot
 
     # ------------------------------------------------------------------ running
+
+    @property
+    def node(self) -> Node:
+        """The simulator's node: ``/clock``, ``/gazebo/model_states`` and ``link_states``."""
+        return self._node
 
     @property
     def now_ns(self) -> int:
@@ -478,7 +493,11 @@ class Simulator:
         for control in self._control:
             control(data, now)
         if spin:
-            self.context.spin_some()
+            self._in_step = True
+            try:
+                self.context.spin_some()
+            finally:
+                self._in_step = False
         if self._split:
             mujoco.mj_step2(model, data)
         else:
@@ -488,6 +507,8 @@ class Simulator:
             after(data, now)
         self._now_ns = now + self._dt_ns
         self._steps += 1
+        while self._edits:
+            self._edits.pop(0)()
 
     def step(self, n: int = 1, *, spin: bool = True) -> None:
         """Advance ``n`` physics steps (never paced to the wall clock).
@@ -533,6 +554,9 @@ class Simulator:
                     break
                 if until is not None and until():
                     break
+                if self._paused:  # Gazebo's paused world: time stands, callbacks run
+                    ctx.spin_once(0.01)
+                    continue
                 self._step_once()
                 if self.realtime:
                     self._pace()
@@ -565,6 +589,36 @@ class Simulator:
                 return
             self.context.spin_once(remaining)
 
+    @property
+    def paused(self) -> bool:
+        """True while physics is paused (``/gazebo/pause_physics``): sim time stands still."""
+        return self._paused
+
+    def pause(self) -> None:
+        """Stop stepping: :meth:`run` keeps serving callbacks, ``/clock`` stops advancing.
+
+        :meth:`step` still advances when called (Gazebo's single step while paused).
+        """
+        self._paused = True
+
+    def unpause(self) -> None:
+        """Resume stepping; realtime pacing restarts from now (no catching up)."""
+        if self._paused:
+            self._paused = False
+            self._pace_ref = (time.perf_counter_ns(), self._now_ns)
+
+    def edit(self, change: Callable[[], None]) -> None:
+        """Change the physics state now, or at the end of the step a callback runs in.
+
+        A service callback called by the lock-step spin (between ``mj_step1`` and
+        ``mj_step2``) must not move bodies under the half-computed step; its change runs
+        after the step instead, before the next one.
+        """
+        if self._in_step:
+            self._edits.append(change)
+        else:
+            change()
+
     def _check_open(self) -> None:
         if self._closed:
             msg = "the simulator is closed; create a new Simulator"
@@ -584,6 +638,12 @@ class Simulator:
             camera.sensor.close()
         if self._render_ctx is not None:
             self._render_ctx.close()
+        services = getattr(self, "gazebo_services", None)
+        if services is not None:
+            services.close()
+        states = getattr(self, "model_states", None)  # None: closed while being built
+        if states is not None:
+            states.close()
         if self._owns_node:
             self._node.destroy_node()
 

@@ -1,9 +1,11 @@
 """Ground truth from a world's geometry: obstacle distance and a 2D occupancy grid.
 
 Both work on the collision shapes of a :class:`~visnav.description.worldmodel.WorldDescription`
-analytically (boxes, cylinders and spheres exactly, in any orientation; meshes
-through their bounding box, which contains them) and are vectorised with numpy.
-They are the reference that acceptance metrics compare maps and flights against.
+analytically (boxes, cylinders and spheres exactly, in any orientation; meshes through
+the convex pieces the simulator collides with, :attr:`~visnav.description.worldmodel.Mesh.pieces`:
+occupancy exactly, distance as the largest distance to a piece's face planes, which is
+exact inside and never larger than the true distance outside) and are vectorised with
+numpy. They are the reference that acceptance metrics compare maps and flights against.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from visnav.description.errors import WorldError
+from visnav.description.mesh_convex import halfspaces
 from visnav.description.worldmodel import Box, Cylinder, Mesh, Sphere
 
 if TYPE_CHECKING:
@@ -21,7 +24,13 @@ if TYPE_CHECKING:
 
     from visnav.description.worldmodel import Shape, WorldDescription
 
-__all__ = ["obstacle_distance", "shape_aabb", "shape_signed_distance", "true_occupancy_grid"]
+__all__ = [
+    "mesh_halfspaces",
+    "obstacle_distance",
+    "shape_aabb",
+    "shape_signed_distance",
+    "true_occupancy_grid",
+]
 
 _CHUNK = 8192
 
@@ -73,17 +82,76 @@ def _box_sdf(
     return np.asarray(outside + inside)
 
 
+def mesh_halfspaces(shape: Mesh) -> list[npt.NDArray[np.float64]]:
+    """World-frame half-spaces ``(K, 4)`` of each convex piece (``n . x + d <= 0`` inside)."""
+    return [planes for planes, _, _ in _world_pieces(shape)]
+
+
+def _world_pieces(
+    shape: Mesh,
+) -> list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]]:
+    """Each convex piece's world half-spaces and world bounding box (lo, hi)."""
+    rot = shape.rotation
+    pos = np.asarray(shape.pos, dtype=np.float64)
+    out = []
+    for points in shape.pieces.points:
+        local = halfspaces(points)
+        if local is None:
+            continue
+        normals = local[:, :3] @ rot.T
+        world = points @ rot.T + pos
+        planes = np.column_stack([normals, local[:, 3] - normals @ pos])
+        out.append((planes, world.min(axis=0), world.max(axis=0)))
+    return out
+
+
+def _mesh_distance(shape: Mesh, pts: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    best = np.full(pts.shape[0], np.inf)
+    for planes in mesh_halfspaces(shape):
+        np.minimum(best, (pts @ planes[:, :3].T + planes[:, 3]).max(axis=1), out=best)
+    return best
+
+
+def _mesh_column_hits(
+    shape: Mesh, start: npt.NDArray[np.float64], z0: float, z1: float
+) -> npt.NDArray[np.bool_]:
+    """Vertical segments from ``start`` (z = z0) to z1 against each convex piece."""
+    hits = np.zeros(start.shape[0], dtype=bool)
+    for planes, lo, hi in _world_pieces(shape):
+        if hi[2] < z0 or lo[2] > z1:
+            continue
+        near = np.flatnonzero(
+            (start[:, 0] >= lo[0])
+            & (start[:, 0] <= hi[0])
+            & (start[:, 1] >= lo[1])
+            & (start[:, 1] <= hi[1])
+        )
+        if near.size == 0:
+            continue
+        a = start[near] @ planes[:, :3].T + planes[:, 3]  # (n, K) at t = 0
+        b = planes[:, 2] * (z1 - z0)  # growth per unit t
+        with np.errstate(divide="ignore", invalid="ignore"):
+            limit = -a / b
+        upper = np.where(b > 0, limit, np.inf).min(axis=1)
+        lower = np.where(b < 0, limit, -np.inf).max(axis=1)
+        flat_ok = np.all((b != 0) | (a <= 1e-12), axis=1)
+        hits[near] |= flat_ok & (np.maximum(lower, 0.0) <= np.minimum(upper, 1.0))
+    return hits
+
+
 def shape_signed_distance(shape: Shape, points: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Signed distance from points to one shape's surface (negative inside).
 
     Args:
-        shape: A shape (a mesh counts as its bounding box).
+        shape: A shape (a mesh: a lower bound from its convex pieces, see the module doc).
         points: ``(N, 3)`` world points.
 
     Returns:
         ``(N,)`` distances in metres.
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if isinstance(shape, Mesh):
+        return _mesh_distance(shape, pts)
     if isinstance(shape, Sphere):
         return np.asarray(np.linalg.norm(pts - np.asarray(shape.pos), axis=1) - shape.radius)
     rot = shape.rotation
@@ -108,7 +176,7 @@ def obstacle_distance(
     """Exact signed distance from 3D points to the nearest obstacle surface.
 
     Obstacles are the world's collision shapes (boxes, cylinders, spheres exact;
-    meshes by their bounding box, so the result never exceeds the true distance).
+    meshes by their convex pieces, so the result never exceeds the true distance).
     A point inside an obstacle gets a negative value (minus its depth).
 
     Args:
@@ -165,6 +233,8 @@ def _column_hits(
     """Whether the vertical segment (x, y, z0)-(x, y, z1) meets the shape, per row of xy."""
     n = xy.shape[0]
     start = np.column_stack([xy, np.full(n, z0)])
+    if isinstance(shape, Mesh):
+        return _mesh_column_hits(shape, start, z0, z1)
     if isinstance(shape, Sphere):
         c = np.asarray(shape.pos)
         dz = np.clip(c[2], z0, z1) - c[2]
@@ -217,8 +287,8 @@ def true_occupancy_grid(
 
     A cell is occupied when the vertical segment through its centre, from
     ``z_range[0]`` to ``z_range[1]``, touches a collision shape (exactly for
-    boxes, cylinders and spheres in any orientation; meshes by their bounding
-    box). The ground plane is not an obstacle.
+    boxes, cylinders, spheres and meshes' convex collision pieces, in any
+    orientation). The ground plane is not an obstacle.
 
     The layout follows ``nav_msgs/OccupancyGrid``: ``grid[iy, ix]`` is the cell
     whose lower-left corner is ``origin + (ix, iy) * resolution``; for a message

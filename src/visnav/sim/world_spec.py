@@ -1,7 +1,11 @@
-"""A :class:`~visnav.description.worldmodel.WorldDescription` as a ``mujoco.MjSpec``."""
+"""A :class:`~visnav.description.worldmodel.WorldDescription` as a ``mujoco.MjSpec``.
+
+Meshes become coloured visual parts and convex collision pieces (:mod:`visnav.sim.mesh_geoms`).
+"""
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import TYPE_CHECKING
 
@@ -9,6 +13,7 @@ from visnav.description.worldmodel import (
     Box,
     Cylinder,
     Material,
+    Mesh,
     Shape,
     Sphere,
     Texture,
@@ -20,13 +25,29 @@ from visnav.sim.textures import noise_image
 if TYPE_CHECKING:
     import mujoco
 
-__all__ = ["COLLISION_ONLY_GROUP", "WORLD_PREFIX", "build_world_spec"]
+__all__ = ["COLLISION_ONLY_GROUP", "MESH_VISUAL_GROUP", "WORLD_PREFIX", "build_world_spec"]
+
+_LOG = logging.getLogger("visnav.sim.world_spec")
 
 WORLD_PREFIX = "world/"
 """Prefix of every name the world puts into the MuJoCo spec."""
 
 COLLISION_ONLY_GROUP = 3
 """MuJoCo geom group of collision-only shapes (not drawn by visnav cameras)."""
+
+MESH_VISUAL_GROUP = 1
+"""Group of the visual geoms of a mesh that also collides (rays skip it, as robot visuals)."""
+
+MESH_RAY_GROUP = 4
+"""Group of a colliding world mesh's ray geom: its triangles, merged into one mesh, without
+contacts or mass and not drawn. Rays hit it as Gazebo's rays hit the mesh itself: one
+bounding-volume hierarchy per mesh, where the convex pieces cost a test each per ray."""
+
+MESH_PIECE_GROUP = 5
+"""Group of a world mesh's convex collision pieces (contacts only; rays skip them)."""
+
+DEFAULT_MESH_RGBA = (0.7, 0.7, 0.7, 1.0)
+"""Colour of a mesh part that has none (Gazebo's default material is grey)."""
 
 
 def _texrepeat(shape: Shape, material: Material) -> tuple[float, float]:
@@ -124,9 +145,57 @@ class _MaterialCache:
         return mj_name
 
 
+def _add_mesh(spec: mujoco.MjSpec, shape: Mesh, materials: _MaterialCache) -> None:
+    """A mesh: visual parts (own colours unless ``rgba``) and convex collision pieces."""
+    from visnav.sim.mesh_geoms import (  # noqa: PLC0415
+        add_collision_pieces,
+        add_ray_geom,
+        add_visual_parts,
+    )
+
+    name = WORLD_PREFIX + shape.name
+    pos, quat = list(shape.pos), list(rpy_to_quat_wxyz(shape.rpy))
+    if shape.visual:
+        geoms = add_visual_parts(
+            spec,
+            spec.worldbody,
+            shape.mesh_data.parts,
+            name=name,
+            pos=pos,
+            quat=quat,
+            rgba=shape.rgba,
+            default_rgba=DEFAULT_MESH_RGBA,
+            group=MESH_VISUAL_GROUP if shape.collision else 0,
+        )
+        if shape.material is not None:
+            repeat = _texrepeat(shape, materials.by_name[shape.material])
+            for geom in geoms:
+                geom.material = materials.get(shape.material, repeat, uniform=False)
+    if shape.collision:
+        pieces = shape.pieces
+        if pieces.warning is not None:
+            _LOG.warning("%s", pieces.warning)
+        add_collision_pieces(
+            spec,
+            spec.worldbody,
+            pieces.points,
+            name=name,
+            pos=pos,
+            quat=quat,
+            group=MESH_PIECE_GROUP,
+        )
+        add_ray_geom(
+            spec, spec.worldbody, shape.mesh_data.parts, name=name, pos=pos, quat=quat,
+            group=MESH_RAY_GROUP,
+        )  # fmt: skip
+
+
 def _add_shape(spec: mujoco.MjSpec, shape: Shape, materials: _MaterialCache) -> None:
     import mujoco  # noqa: PLC0415
 
+    if isinstance(shape, Mesh):
+        _add_mesh(spec, shape, materials)
+        return
     geom = spec.worldbody.add_geom(
         name=WORLD_PREFIX + shape.name,
         pos=list(shape.pos),
@@ -138,14 +207,9 @@ def _add_shape(spec: mujoco.MjSpec, shape: Shape, materials: _MaterialCache) -> 
     elif isinstance(shape, Cylinder):
         geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
         geom.size = [shape.radius, 0.5 * shape.length, 0.0]
-    elif isinstance(shape, Sphere):
+    else:
         geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
         geom.size = [shape.radius, 0.0, 0.0]
-    else:
-        mesh_name = f"{WORLD_PREFIX}{shape.name}"
-        spec.add_mesh(name=mesh_name, file=shape.file, scale=list(shape.scale))
-        geom.type = mujoco.mjtGeom.mjGEOM_MESH
-        geom.meshname = mesh_name
     if shape.material is not None:
         geom.material = materials.get(
             shape.material, _texrepeat(shape, materials.by_name[shape.material]), uniform=False

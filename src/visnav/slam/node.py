@@ -74,6 +74,11 @@ Inputs that cannot be used (a camera_info that changes or disagrees with the
 image, an implausible depth scale) are logged (each kind at most once per 5 s, through
 the logger's ``throttle_duration_sec``) and the frame dropped; a SLAM scale that
 disagrees with wheel odometry by 5x or more is reported as a likely depth unit error.
+
+Services (rtabmap's names, in the node's namespace: ``/slam/reset``, ...;
+:mod:`visnav.slam.node_services`): ``~/reset``, ``~/pause``, ``~/resume``
+(``std_srvs/srv/Empty``) and ``~/save_map`` (``std_srvs/srv/Trigger``: the map to
+``database_path`` now).
 """
 
 from __future__ import annotations
@@ -108,6 +113,7 @@ from visnav.slam.geometry import inverse, level_pose
 from visnav.slam.map_file import check_database_path, check_saved_map_path
 from visnav.slam.node_diagnostics import LOCALIZE_FRAMES, SlamDiagnostics
 from visnav.slam.node_params import SlamParams
+from visnav.slam.node_services import SlamServices
 from visnav.slam.system import SlamSystem
 from visnav.slam.trajectory import Trajectory
 from visnav.slam.worker import (
@@ -245,6 +251,7 @@ class SlamNode(Node):
         self.unlocalized_frames = 0  # localisation mode: frames before the first fix
         self.cpu_s = 0.0  # the worker's CPU time on frames (its process or this thread)
         self._stats = SlamStats()
+        self.stats_stamp_ns = -1  # the stamp of the last frame the counters include
         self._diag = SlamDiagnostics(self)
         diag_period = prm.diagnostic_period
         if diag_period > 0:  # 0: only on loss and recovery
@@ -291,6 +298,7 @@ class SlamNode(Node):
             self.create_timer(map_period, self._publish_map)
         if dense_period > 0:
             self.create_timer(dense_period, self._publish_dense)
+        self.slam_services = SlamServices(self)  # reset, pause, resume, save_map
 
     # ---------------------------------------------------------------- helpers
 
@@ -333,6 +341,9 @@ class SlamNode(Node):
     # -------------------------------------------------------------- callbacks
 
     def _on_frame(self, image: Image, *rest: Any) -> None:
+        if self.slam_services.paused:  # ~/pause: frames are left out until ~/resume
+            self.slam_services.paused_frames += 1
+            return
         depth, info = (None, rest[0]) if self._mono_odom else (rest[0], rest[1])
         try:
             self._process(image, depth, info)
@@ -488,7 +499,7 @@ class SlamNode(Node):
             out = self.worker.next_result()  # waits for the worker: the barrier
             self.cpu_s += out.cpu_s
             if out.stats is not None:
-                self._stats = out.stats
+                self._stats, self.stats_stamp_ns = out.stats, stamp
             if out.result is None:
                 self.dropped += 1
                 self.get_logger().error(
@@ -653,6 +664,16 @@ class SlamNode(Node):
     def _on_dense_request(self, msg: Any) -> None:
         del msg
         self._publish_dense()
+
+    def reset_map(self) -> None:
+        """Drop the map (and frames in flight); the next frame starts a new one, as at start."""
+        worker, self.worker = self.worker, None
+        self._in_flight.clear()
+        if worker is not None:
+            worker.close()
+        self.t_map_odom = self._level_z = self._odom_start = self._slam_start = None
+        self._path, self._path_sent_ns, self._scale_checked = [], None, False
+        self._worker_failure, self.tracking, self.unlocalized_frames = None, False, 0
 
     def destroy_node(self) -> None:
         """Save the map (``database_path``), stop the worker (its process), remove the node."""

@@ -26,7 +26,9 @@ class SlamDiagnostics:
     localisation mode before the first fix WARN, ERROR after ``LOCALIZE_FRAMES``), and the
     counters ``frames``, ``tracking_lost``, ``relocalized``, ``reinitialized``,
     ``keyframes``, ``loop_closures``, ``skipped``, ``dropped``, ``ba_runs``,
-    ``ba_failures``, ``cpu_s`` and ``cpu_s.<stage>``. rtabmap reports these on its own
+    ``ba_failures``, ``cpu_s`` and ``cpu_s.<stage>``, and ``last_frame_stamp_ns``: the
+    stamp of the last frame they include (-1: none; frames still in the worker are not
+    counted yet), so a reader can tell the frames after it. rtabmap reports these on its own
     ``rtabmap/info`` message type; a standard type lets any ROS tool read them.
     """
 
@@ -54,6 +56,7 @@ class SlamDiagnostics:
             "ba_failures": s.ba_failures,
             "cpu_s": round(s.cpu_s, 4),
             **{f"cpu_s.{k}": round(v, 4) for k, v in sorted(s.stage_cpu_s.items())},
+            "last_frame_stamp_ns": node.stats_stamp_ns,
         }
         if not started:
             level, text = 0, "waiting for the first frame"

@@ -7,10 +7,12 @@ Parameters, as ROS 2's robot_state_publisher:
 
 * ``robot_description`` (string, required): the URDF XML (Xacro already expanded);
   republished latched on ``robot_description``;
-* ``frame_prefix`` (string): prepended to every frame id.
+* ``frame_prefix`` (string): prepended to every frame id;
+* ``publish_frequency`` (Hz, 20.0 as ROS 2; ROS 1's default is 50.0): at most this
+  often per joint, by the messages' stamps; 0 publishes every message.
 
 It publishes ``/tf_static`` for the fixed joints once and ``/tf`` for the moving
-joints on every ``joint_states`` message, stamped as the message (see
+joints on ``joint_states`` messages, stamped as the message (see
 :mod:`visnav.tf.robot_state` for the differences from ROS). Meshes are not
 needed: only links and joints are read.
 """
@@ -74,6 +76,9 @@ class RobotStatePublisher:
         description: the URDF XML, published latched on ``robot_description``.
         joint_states_topic: where joint states arrive.
         stamp_ns: stamp of the static transforms.
+        publish_interval_ns: a joint's transform is published at most once per this
+            interval of message stamps (robot_state_publisher's ``publish_frequency``);
+            0: every message.
     """
 
     def __init__(
@@ -84,9 +89,12 @@ class RobotStatePublisher:
         *,
         joint_states_topic: str = "joint_states",
         stamp_ns: int = 0,
+        publish_interval_ns: int = 0,
     ) -> None:
         self.node = node
         self.model = model
+        self.publish_interval_ns = publish_interval_ns
+        self._last_ns: dict[str, int] = {}
         node.create_publisher(String, "robot_description", qos_profile_latched).publish(
             String(data=description)
         )
@@ -101,7 +109,23 @@ class RobotStatePublisher:
                 JointState, joint_states_topic, self._on_joint_states, _DEFAULT_QOS
             )
 
+    def _due(self, msg: JointState) -> bool:
+        """robot_state_publisher's throttle: the oldest last publish of the message's joints."""
+        if self.publish_interval_ns <= 0:
+            return True
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        known = [self._last_ns[n] for n in msg.name if n in self._last_ns]
+        # a joint never published, or time gone backwards (a restarted simulation): publish
+        fresh = not known or len(known) < len(msg.name) or stamp < min(known)
+        if not fresh and stamp < min(known) + self.publish_interval_ns:
+            return False
+        for name in msg.name:
+            self._last_ns[name] = stamp
+        return True
+
     def _on_joint_states(self, msg: JointState) -> None:
+        if not self._due(msg):
+            return
         try:
             transforms = self.model.dynamic_transforms(msg)
         except RobotStateError as exc:
@@ -121,6 +145,9 @@ class RobotStatePublisherParams:
 
     robot_description: str = param("", description="the robot's URDF XML (required)")
     frame_prefix: str = param("", description="prepended to every published frame id")
+    publish_frequency: float = param(
+        20.0, description="max /tf rate per joint (Hz); 0: every message", range=(0.0, 1e6)
+    )
 
 
 class RobotStatePublisherNode(Node):
@@ -154,6 +181,9 @@ class RobotStatePublisherNode(Node):
                 RobotStateModel(urdf, frame_prefix=prefix),
                 description,
                 stamp_ns=self.get_clock().now_ns(),
+                publish_interval_ns=(
+                    round(1e9 / params.publish_frequency) if params.publish_frequency > 0 else 0
+                ),
             )
         except BaseException:
             self.destroy_node()

@@ -5,7 +5,8 @@ launches often run headless; ``web: false`` spawns the native viewer) and stream
 topic of its context's graph to it, placed in ``fixed_frame`` through TF as
 ``visnav view`` does. Parameters: ``fixed_frame`` (default: the TF root), ``web``
 (true), ``save`` (an ``.rrd`` path, default none), ``config`` (an ``.rviz`` file: read
-for the fixed frame only by the roslaunch import).
+for the fixed frame only by the roslaunch import), ``packages`` (``name=DIR``: the robot
+model's ``package://`` meshes; the roslaunch import gives every package it knows).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ class ViewerParams:
     web: bool = param(True, description="web viewer on 127.0.0.1 (false: native viewer)")
     save: str = param("", description="also write an .rrd recording here (empty: none)")
     config: str = param("", description="an .rviz file (read by the roslaunch import only)")
+    packages: tuple[str, ...] = param(("",), description="name=DIR for package:// meshes")
 
 
 class ViewerNode(Node):
@@ -46,7 +48,11 @@ class ViewerNode(Node):
         self.viewer = open_viewer(web=web, save=save)
         if self.viewer.url:
             self.get_logger().info(f"viewer: {self.viewer.url}")
-        self.feed = LiveFeed(RerunSink(self.viewer.recording, fixed_frame=fixed), self.context)
+        packages = dict(
+            item.split("=", 1) for item in p.packages if "=" in item and item.split("=", 1)[1]
+        )
+        sink = RerunSink(self.viewer.recording, fixed_frame=fixed, packages=packages)
+        self.feed = LiveFeed(sink, self.context)
         steady = Clock(ClockType.STEADY_TIME)
         self.create_timer(0.5, self._poll, clock=steady)
 

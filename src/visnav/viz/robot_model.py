@@ -20,7 +20,7 @@ greys it out; Rerun keeps it).
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -74,8 +74,12 @@ class LinkVisual:
     mesh_path: str = ""
 
 
-def parse_robot_description(text: str, *, source: str = "robot_description") -> Any:
+def parse_robot_description(
+    text: str, *, source: str = "robot_description", packages: Mapping[str, str] | None = None
+) -> Any:
     """Parse a URDF (already Xacro-expanded) with visnav's URDF reader.
+
+    ``packages`` (name -> directory) resolves its ``package://`` meshes.
 
     Raises:
         VizError: the text is not a valid URDF (the reader's message, naming ``source``).
@@ -83,7 +87,7 @@ def parse_robot_description(text: str, *, source: str = "robot_description") -> 
     from visnav.description.urdf import parse_urdf  # noqa: PLC0415
 
     try:
-        return parse_urdf(text, source=source)
+        return parse_urdf(text, source=source, packages=packages)
     except (VisnavError, ValueError) as exc:
         raise VizError(f"{source}: cannot show the robot model: {exc}") from exc
 

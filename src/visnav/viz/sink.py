@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Literal
 
 import numpy as np
@@ -144,6 +144,7 @@ class RerunSink:
         layout: send the default blueprint (3D view, cameras beside it) and update it as
             cameras appear.
         tf_prefix: the robot model's TF prefix (RViz's RobotModel *TF Prefix*).
+        packages: package name -> directory for the robot model's ``package://`` meshes.
     """
 
     def __init__(
@@ -162,11 +163,13 @@ class RerunSink:
         strict: bool = False,
         layout: bool = True,
         tf_prefix: str = "",
+        packages: Mapping[str, str] | None = None,
     ) -> None:
         if max_points is not None and max_points < 1:
             text = f"max_points is {max_points}: expected at least 1 (or None for every point)"
             raise VizError(text)
         self.recording = recording
+        self._packages = dict(packages or {})  # package:// meshes of robot_description
         self.placer = FramePlacer(fixed_frame, queue_size=queue_size)
         self._max_points = max_points
         self._root = root.strip("/") or "world"
@@ -372,7 +375,7 @@ class RerunSink:
     # ------------------------------------------------------------------ robot model
 
     def _robot_description(self, topic: str, msg: Any, t: int) -> None:
-        urdf = parse_robot_description(str(msg.data), source=topic)
+        urdf = parse_robot_description(str(msg.data), source=topic, packages=self._packages)
         parts = [rr.escape_entity_path_part(p) for p in topic.split("/")[:-1] if p]
         name = "/".join([*parts, rr.escape_entity_path_part(str(urdf.name))])
         model = RobotModel(urdf, f"{self._root}/robot_model/{name}", tf_prefix=self._tf_prefix)

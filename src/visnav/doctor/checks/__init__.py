@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from visnav.doctor.checks.camera_info import check_camera_info
+from visnav.doctor.checks.description import check_declared_sensors
 from visnav.doctor.checks.frames import check_frame_conventions, check_frame_ids, check_odometry
 from visnav.doctor.checks.images import check_images
 from visnav.doctor.checks.planner import check_planner, planner_input_topics
@@ -28,6 +29,7 @@ def run_checks(ctx: CheckContext) -> Iterator[Finding]:
     yield from check_expected_topics(ctx)
     yield from check_graph_topics(ctx, skip=planner_inputs)
     yield from check_undecodable(ctx)
+    yield from check_declared_sensors(ctx)
     yield from check_no_messages(ctx, skip=planner_inputs)
     yield from check_rates(ctx)
     yield from check_images(ctx)

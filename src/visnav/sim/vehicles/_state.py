@@ -74,5 +74,7 @@ class BodyReader:
         angular = velocity[:3]
         # mj_objectVelocity reports the velocity of the centre of mass; move it to the origin
         offset = pos - np.asarray(data.xipos[self.body])
-        linear = velocity[3:] + np.cross(angular, offset)
+        wx, wy, wz = angular  # angular x offset, written out (np.cross costs ~100 us here)
+        ox, oy, oz = offset
+        linear = velocity[3:] + np.array([wy * oz - wz * oy, wz * ox - wx * oz, wx * oy - wy * ox])
         return BodyState(pos, r, quat, linear, angular)

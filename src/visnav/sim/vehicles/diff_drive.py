@@ -53,6 +53,10 @@ Where visnav differs, and why:
   (the plugin leaves its ramp state stale, so the next ramp starts from an old
   value);
 * a non-finite ``cmd_vel`` component is read as 0 (a stop), not passed to the joints.
+
+``legacy_mode`` (ROS 1 ``<legacyMode>``, read by the kinetic plugin only) swaps the signs
+of the turn as that plugin did: ``v + w * b / 2`` on the left wheel, ``v - w * b / 2`` on
+the right, and the encoder heading integrates ``sl - sr``.
 """
 
 from __future__ import annotations
@@ -66,7 +70,9 @@ import numpy as np
 from visnav.description.noise_specs import WheelOdometryNoise
 from visnav.sim.errors import DiffDriveError
 from visnav.sim.noise_models import WheelEncoderModel
+from visnav.sim.sensor_timing import SensorClock
 from visnav.sim.vehicles._state import BodyReader
+from visnav.sim.vehicles.servo import VelocityServo
 from visnav.tf.transforms import yaw_from_quaternion
 
 if TYPE_CHECKING:
@@ -88,8 +94,6 @@ __all__ = [
 
 _REACHED_TOLERANCE = 0.01  # m/s, as in the plugin
 _UNKNOWN_COVARIANCE = 1.0e12
-_MOTOR_GAIN = 0.9  # fraction of the one-step (deadbeat) velocity correction per physics step
-_MOTOR_INTEGRAL_TIME = 0.05  # s, integral time of the wheel velocity servo
 
 
 class DiffDriveParameters(Protocol):
@@ -346,6 +350,11 @@ class EncoderOdometry:
         self.x = self.y = self.theta = self.v = self.w = 0.0
         self._last = (left_angle, right_angle)
 
+    def restart(self) -> None:
+        """Restart at the origin from the wheel angles of the next update."""
+        self.x = self.y = self.theta = self.v = self.w = 0.0
+        self._last = None
+
     def update(self, left_angle: float, right_angle: float, dt: float) -> None:
         """Integrate the wheel angles (rad) reached after ``dt`` seconds."""
         model = self.model
@@ -431,10 +440,13 @@ class DiffDriveController:
         self._radius = np.concatenate([radius, radius])  # left wheels, then right wheels
         self._separation = np.asarray(config.wheel_separation, dtype=np.float64)
         self._period_ns = 0 if config.update_rate == 0 else round(1e9 / config.update_rate)
-        # deadbeat gain of the velocity motor: the torque that reaches the target in one step
-        self._timestep = float(model.opt.timestep)
-        self._gain = _MOTOR_GAIN * np.asarray(model.dof_M0[self._dof]) / self._timestep
-        self._integral = np.zeros(2 * pairs)
+        # drift-free updates at k * period after the start (the first one period in), as
+        # the ROS 1 plugin's ``last_update_time_ += update_period_``
+        self._clock = SensorClock(config.update_rate, start_ns=int(start_ns) + self._period_ns)
+        self._legacy = bool(getattr(config, "legacy_mode", False))
+        self._servo = VelocityServo(
+            model, self._dof.tolist(), [config.max_wheel_torque] * (2 * pairs)
+        )
         self._pose_cov = _covariance(config.covariance)
         self._target = (0.0, 0.0)
         self._instructed = np.zeros(2 * pairs)
@@ -459,6 +471,17 @@ class DiffDriveController:
         w = float(angular_z) if math.isfinite(angular_z) else 0.0
         self._target = (v, w)
 
+    def reset(self) -> None:
+        """Stop and restart the encoder odometry at the origin (``/gazebo/reset_world``).
+
+        As gazebo_ros_diff_drive's ``Reset()``: command, ramp and motor integrator zero.
+        """
+        self._target = (0.0, 0.0)
+        self._instructed[:] = 0.0
+        self._servo.reset()
+        self._last_encoder_ns = None
+        self.encoder.restart()
+
     def wheel_speeds(self, data: mujoco.MjData) -> npt.NDArray[np.float64]:
         """Measured rim speeds (m/s), left wheels then right wheels."""
         return np.asarray(data.qvel[self._dof] * self._radius)
@@ -467,6 +490,8 @@ class DiffDriveController:
         """Desired rim speeds (m/s) for the current command, left then right."""
         v, w = self._target
         half = self._separation / 2.0
+        if self._legacy:  # kinetic's legacyMode: the signs of the turn swapped
+            return np.concatenate([v + w * half, v - w * half])
         return np.concatenate([v - w * half, v + w * half])
 
     def step(self, data: mujoco.MjData, now_ns: int) -> DiffDriveOdometry | None:
@@ -481,25 +506,15 @@ class DiffDriveController:
         """
         if self.config.odometry_source == "encoder":
             self._update_encoder(data, now_ns)
-        elapsed_ns = now_ns - self._last_update_ns
-        if elapsed_ns >= self._period_ns:
-            self._update(data, now_ns, elapsed_ns * 1e-9)
-        odometry = self.odometry if elapsed_ns >= self._period_ns else None
+        due = self._clock.due(now_ns)
+        if due:
+            self._update(data, now_ns, (now_ns - self._last_update_ns) * 1e-9)
+        odometry = self.odometry if due else None
         self._apply_motor(data)
         return odometry
 
     def _apply_motor(self, data: mujoco.MjData) -> None:
-        error = self._instructed / self._radius - data.qvel[self._dof]
-        limit = self.config.max_wheel_torque
-        # PI velocity servo: the P part is the one-step correction of the wheel's own
-        # inertia, the I part removes the steady error under load (ground, scrubbing);
-        # both saturate at the torque limit (no windup).
-        self._integral = np.clip(
-            self._integral + self._gain * error * (self._timestep / _MOTOR_INTEGRAL_TIME),
-            -limit,
-            limit,
-        )
-        data.qfrc_applied[self._dof] = np.clip(self._gain * error + self._integral, -limit, limit)
+        self._servo.apply(data, (self._instructed / self._radius).tolist())
 
     def _update(self, data: mujoco.MjData, now_ns: int, dt: float) -> None:
         if self.config.odometry_source == "world":
@@ -529,6 +544,8 @@ class DiffDriveController:
         left = float(data.qpos[self._qpos[0]])
         right = float(data.qpos[self._qpos[pairs]])
         dt = 0.0 if self._last_encoder_ns is None else (now_ns - self._last_encoder_ns) * 1e-9
+        if self._legacy:  # kinetic's legacyMode integrates sl - sr as the heading change
+            left, right = right, left
         self.encoder.update(left, right, dt)
         self._last_encoder_ns = now_ns
 
