@@ -246,8 +246,8 @@ def test_host_resolution_follows_rospy() -> None:
     assert advertised_host({"ROS_IP": "10.0.0.2"}) == "10.0.0.2"
     assert advertised_host({}) != ""
     assert bind_address("localhost") == "127.0.0.1"
-    assert bind_address("127.0.1.1") == "127.0.0.1"
-    assert bind_address("10.0.0.2") == "0.0.0.0"
+    assert bind_address("127.0.1.1") == "127.0.1.1"  # Debian's /etc/hosts address of the host name
+    assert bind_address("10.0.0.2") == "10.0.0.2"  # never all interfaces: tests/bridge/test_bind.py
 
 
 def test_served_master_port_taken_is_named(master: Ros1Master) -> None:

@@ -1,5 +1,8 @@
 """The ROS 1 bridge: visnav topics appear in a ROS 1 graph and ROS 1 topics come in on demand.
 
+Services cross both ways too (:mod:`visnav.bridge.services`), and visnav actions are offered
+as ROS 1 actionlib servers (:mod:`visnav.bridge.actionlib`).
+
 Out (visnav -> ROS 1): every topic with a visnav publisher is advertised to the ROS 1 master;
 its messages are taken from the visnav graph only while a ROS 1 node is connected (latched
 topics always, to hold the last message for late joiners). In (ROS 1 -> visnav): every topic a
@@ -23,9 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from visnav.bridge.actionlib import ActionlibBridge
 from visnav.bridge.bytetail import head_plan, split_cdr_to_ros1
 from visnav.bridge.errors import BridgeError, TcprosError, UnconvertibleTypeError
 from visnav.bridge.ros1_node import Ros1Node
+from visnav.bridge.services import ServiceBridge
 from visnav.bridge.typemap import Ros1Type, cdr_to_ros1, ros1_to_cdr, ros1_type
 from visnav.graph import (
     DurabilityPolicy,
@@ -62,15 +67,23 @@ class BridgeOptions:
 
     Attributes:
         topics: shell-style patterns of topics to bridge (empty: all).
-        exclude: patterns of topics never bridged.
+        exclude: patterns of topics and services never bridged.
         scan_period_s: how often the graphs are compared.
         queue_size: messages kept per ROS 1 subscriber that cannot keep up.
+        services: shell-style patterns of services to bridge (empty: all whose types
+            cross to ROS 1).
+        service_timeout_s: the longest a service call through the bridge may take.
+        actions: shell-style patterns of visnav actions offered to ROS 1 as actionlib
+            servers (empty: all whose types cross).
     """
 
     topics: tuple[str, ...] = ()
     exclude: tuple[str, ...] = ()
     scan_period_s: float = 0.25
     queue_size: int = 10
+    services: tuple[str, ...] = ()
+    service_timeout_s: float = 10.0
+    actions: tuple[str, ...] = ()
 
 
 class _Out:
@@ -121,6 +134,12 @@ class Ros1Bridge:
         self._sim_time_set = False
         self._description: str | None = None
         self._last_error = ""
+        self.services = ServiceBridge(
+            node, ros1, selected=self._wanted_service, timeout_s=self.options.service_timeout_s
+        )
+        self.actionlib = ActionlibBridge(
+            node, ros1, selected=self._wanted_action, release=self._release_topics
+        )
         self._timer = node.create_timer(self.options.scan_period_s, self.scan)
 
     # ------------------------------------------------------------------ bookkeeping
@@ -139,9 +158,27 @@ class Ros1Bridge:
         return out
 
     def _wanted(self, topic: str) -> bool:
-        if is_hidden_name(topic):
+        if is_hidden_name(topic) or topic in self.actionlib.owned_topics():
             return False
         return topic_selected(topic, self.options.topics, self.options.exclude)
+
+    def _wanted_service(self, name: str) -> bool:
+        if is_hidden_name(name):
+            return False
+        return topic_selected(name, self.options.services, self.options.exclude)
+
+    def _release_topics(self, topics: list[str]) -> None:
+        """Stop bridging ``topics`` (an actionlib server takes them over)."""
+        for topic in topics:
+            if topic in self._out:
+                self._drop_out(topic)
+            if topic in self._in:
+                self._drop_in(topic)
+
+    def _wanted_action(self, name: str) -> bool:
+        if is_hidden_name(name):
+            return False
+        return topic_selected(name, self.options.actions, self.options.exclude)
 
     def _convertible(self, topic: str, type_name: str) -> Ros1Type | None:
         try:
@@ -170,6 +207,8 @@ class Ros1Bridge:
         try:
             self._scan_out(pubs, latched)
             self._scan_in(subs)
+            self.services.scan()
+            self.actionlib.scan()  # takes its topics from the topic bridge (_release_topics)
         except BridgeError as exc:
             if str(exc) != self._last_error:  # once per distinct failure, not every scan
                 self._last_error = str(exc)
@@ -389,6 +428,8 @@ class Ros1Bridge:
     def close(self) -> None:
         """Stop scanning and drop every bridged topic (the ROS 1 node stays open)."""
         self._timer.cancel()
+        self.services.close()
+        self.actionlib.close()
         for topic in list(self._out):
             self._drop_out(topic)
         for topic in list(self._in):

@@ -394,7 +394,12 @@ class InConnection:
                 self.stats.bytes += len(payload) + 4
                 self._on_message(payload)
         except (TcprosError, OSError, ValueError) as exc:
-            if not self._closed:
+            if self._closed:
+                pass
+            elif str(exc).startswith("peer closed the connection after 0 of 4 bytes"):
+                # between two messages: the publisher left (a rospy node exiting), no fault
+                _log.info("ROS 1 publisher %s of %s left", self.stats.peer, self.topic)
+            else:
                 _log.warning("dropped ROS 1 connection on %s: %s", self.topic, exc)
         except Exception as exc:  # noqa: BLE001 - xmlrpc faults etc.: the connection ends, not the bridge
             if not self._closed:

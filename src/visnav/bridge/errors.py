@@ -8,6 +8,7 @@ __all__ = [
     "BridgeError",
     "MasterError",
     "MasterUnreachableError",
+    "Ros1ServiceError",
     "TcprosError",
     "UnconvertibleTypeError",
 ]
@@ -23,6 +24,10 @@ class MasterUnreachableError(BridgeError, ConnectionError):
 
 class MasterError(BridgeError, RuntimeError):
     """The ROS 1 master answered a call with an error code."""
+
+
+class Ros1ServiceError(BridgeError, RuntimeError):
+    """A call of a ROS 1 service failed (refused, unreachable, or the server's error text)."""
 
 
 class TcprosError(BridgeError, ValueError):

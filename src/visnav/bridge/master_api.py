@@ -1,12 +1,14 @@
 """Client of the ROS 1 master's XML-RPC API and the environment that locates it.
 
 ``ROS_MASTER_URI`` names the master; ``ROS_HOSTNAME``, else ``ROS_IP``, is the address this
-process advertises to its peers, else the host name (rospy's order, from ``rosgraph.network``).
+process advertises to its peers (rospy's order, from ``rosgraph.network``) and the only address
+it listens on (:func:`node_addresses`).
 """
 
 from __future__ import annotations
 
 import http.client
+import ipaddress
 import os
 import socket
 import xmlrpc.client
@@ -22,6 +24,7 @@ __all__ = [
     "advertised_host",
     "bind_address",
     "master_uri_from_env",
+    "node_addresses",
     "xmlrpc_proxy",
 ]
 
@@ -70,11 +73,82 @@ def advertised_host(env: Mapping[str, str] | None = None) -> str:
     return name
 
 
+def _is_loopback(address: str) -> bool:
+    return address == "::1" or address.startswith("127.")
+
+
 def bind_address(host: str) -> str:
-    """The address to listen on for an advertised host: loopback stays loopback (as rospy)."""
-    if host in ("localhost", "::1") or host.startswith("127."):
+    """The address to listen on for an advertised host: that host's own address only.
+
+    ``localhost`` (and ``::1``) give ``127.0.0.1``; an IP address is used as it is; a host
+    name is resolved (IPv4: Debian's ``/etc/hosts`` maps the host name to ``127.0.1.1``,
+    which is then the address). Never all interfaces: a peer reaches the node only at the
+    address it is told, so listening elsewhere only lets others in.
+
+    Raises:
+        BridgeError: the host name does not resolve.
+    """
+    host = host.strip()
+    if host in ("localhost", "::1"):
         return "127.0.0.1"
-    return "0.0.0.0"  # noqa: S104 - peers on other machines must reach the node, as rospy
+    try:
+        ipaddress.ip_address(host)
+    except ValueError:
+        pass
+    else:
+        return host
+    try:
+        infos = socket.getaddrinfo(host, None, socket.AF_INET, socket.SOCK_STREAM)
+    except OSError as exc:
+        msg = (
+            f"ROS_HOSTNAME={host!r} does not resolve ({exc}): set it to a name of this machine, "
+            "or set ROS_IP to one of its addresses"
+        )
+        raise BridgeError(msg) from exc
+    return str(infos[0][4][0])
+
+
+def _route_source(host: str, port: int) -> str:
+    """This machine's address on the route to ``host`` (a UDP connect: nothing is sent)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.connect((host, port))
+        return str(probe.getsockname()[0])
+
+
+def node_addresses(master_uri: str, env: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """``(advertised host, bind address)`` of a ROS 1 node of this process.
+
+    * ``ROS_HOSTNAME``, else ``ROS_IP``, set: peers are told that, and the node listens on
+      its address only (:func:`bind_address`).
+    * Neither set and the master on loopback (``localhost``, ``127.*``): ``127.0.0.1`` for
+      both; nothing outside this machine can reach the node.
+    * Neither set and the master elsewhere: this machine's address on the route to the
+      master, for both (rospy would tell the host name and listen on all interfaces).
+
+    Raises:
+        BridgeError: ``ROS_HOSTNAME`` does not resolve, or the master's host cannot be
+            resolved or routed to.
+    """
+    env = os.environ if env is None else env
+    for key in ("ROS_HOSTNAME", "ROS_IP"):
+        value = env.get(key, "").strip()
+        if value:
+            return value, bind_address(value)
+    parts = urlsplit(master_uri)
+    master_host = parts.hostname or "localhost"
+    try:
+        infos = socket.getaddrinfo(master_host, None, socket.AF_INET, socket.SOCK_STREAM)
+        master_ip = str(infos[0][4][0])
+        if master_host == "localhost" or _is_loopback(master_ip):
+            return "127.0.0.1", "127.0.0.1"
+        own = _route_source(master_ip, parts.port or 11311)
+    except OSError as exc:
+        msg = (
+            f"cannot find this machine's address towards the ROS 1 master {master_uri} "
+            f"({exc}); set ROS_IP to the address other ROS 1 nodes reach this machine at"
+        )
+        raise BridgeError(msg) from exc
+    return own, own
 
 
 class _TimeoutTransport(xmlrpc.client.Transport):
@@ -157,6 +231,22 @@ class MasterClient:
     def unregister_subscriber(self, topic: str, api: str) -> None:
         """Unregister a subscription."""
         self.call("unregisterSubscriber", topic, api)
+
+    def register_service(self, service: str, service_api: str, api: str) -> None:
+        """Register as the provider of a service (``rosrpc://host:port``)."""
+        self.call("registerService", service, service_api, api)
+
+    def unregister_service(self, service: str, service_api: str) -> None:
+        """Unregister a service."""
+        self.call("unregisterService", service, service_api)
+
+    def lookup_service(self, service: str) -> str:
+        """The ``rosrpc://`` URI of a service's provider.
+
+        Raises:
+            MasterError: no node provides it.
+        """
+        return str(self.call("lookupService", service))
 
     def system_state(self) -> tuple[list[Any], list[Any], list[Any]]:
         """Return ``(publishers, subscribers, services)``, each ``[[name, [node, ...]], ...]``."""

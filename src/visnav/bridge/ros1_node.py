@@ -2,7 +2,8 @@
 
 The slave API answers what ``rosnode`` and other nodes call: ``getBusInfo``, ``getBusStats``,
 ``getPid``, ``getSubscriptions``, ``getPublications``, ``getMasterUri``, ``requestTopic``,
-``publisherUpdate``, ``paramUpdate`` and ``shutdown``.
+``publisherUpdate``, ``paramUpdate`` and ``shutdown``. The TCPROS server takes topic
+subscribers and service clients (:mod:`~visnav.bridge.tcpros_service`) on one port, as rospy.
 """
 
 from __future__ import annotations
@@ -30,7 +31,9 @@ from visnav.bridge.connections import (
 )
 from visnav.bridge.errors import BridgeError, TcprosError
 from visnav.bridge.master_api import MasterClient, bind_address
+from visnav.bridge.srvmap import Ros1ServiceType
 from visnav.bridge.tcpros import encode_header, read_header
+from visnav.bridge.tcpros_service import ServedService, ServiceHandler, serve_service_connection
 from visnav.bridge.typemap import Ros1Type, rosout_type
 
 __all__ = [
@@ -129,6 +132,9 @@ class Ros1Node:
         name: the node name (``/visnav_bridge``).
         master_uri: the master's URI.
         host: the address peers use to reach this node.
+        bind: the address its XML-RPC and TCPROS servers listen on (default: ``host``'s
+            own, :func:`~visnav.bridge.master_api.bind_address`; never all interfaces
+            unless asked with ``"0.0.0.0"``).
         on_shutdown: called when a peer calls ``shutdown`` (``rosnode kill``).
         on_demand: called with a topic when its number of ROS 1 subscribers changes.
 
@@ -143,6 +149,7 @@ class Ros1Node:
         *,
         master_uri: str,
         host: str,
+        bind: str | None = None,
         on_shutdown: Callable[[str], None] | None = None,
         on_demand: Callable[[str], None] | None = None,
     ) -> None:
@@ -155,10 +162,18 @@ class Ros1Node:
         self._lock = threading.RLock()
         self._pubs: dict[str, _Publication] = {}
         self._subs: dict[str, _Subscription] = {}
+        self._services: dict[str, ServedService] = {}
         self._ids = itertools.count(1)
         self._closed = False
-        bind = bind_address(host)
-        self._xmlrpc = ThreadingXmlRpcServer((bind, 0))
+        self.bind = bind_address(host) if bind is None else bind
+        try:
+            self._xmlrpc = ThreadingXmlRpcServer((self.bind, 0))
+        except OSError as exc:
+            msg = (
+                f"the ROS 1 node {self.name} cannot listen on {self.bind} ({exc}): "
+                "ROS_IP / ROS_HOSTNAME must name an address of this machine"
+            )
+            raise BridgeError(msg) from exc
         for method in (
             "getBusStats",
             "getBusInfo",
@@ -173,7 +188,7 @@ class Ros1Node:
         ):
             self._xmlrpc.register_function(getattr(self, f"_api_{method}"), method)
         self.uri = f"http://{host}:{self._xmlrpc.server_address[1]}/"
-        self._tcp = socket.create_server((bind, 0))
+        self._tcp = socket.create_server((self.bind, 0))
         self.tcp_port = int(self._tcp.getsockname()[1])
         self._threads = [
             threading.Thread(
@@ -398,6 +413,52 @@ class Ros1Node:
             if sub is not None and sub.conns.get(conn.publisher_uri) is conn:
                 del sub.conns[conn.publisher_uri]
 
+    # ------------------------------------------------------------------ services
+    @property
+    def service_uri(self) -> str:
+        """``rosrpc://host:port``: where ROS 1 clients call this node's services."""
+        return f"rosrpc://{self.host}:{self.tcp_port}"
+
+    def advertise_service(self, name: str, stype: Ros1ServiceType, handler: ServiceHandler) -> None:
+        """Serve a service to ROS 1 (``registerService`` at the master).
+
+        ``handler(request_bytes) -> response_bytes`` runs on the caller's connection thread;
+        what it raises is the caller's error reply.
+
+        Raises:
+            MasterUnreachableError: no master.
+            MasterError: the master refused.
+        """
+        with self._lock:
+            if name in self._services:
+                return
+            self._services[name] = ServedService(name, stype, handler)
+        try:
+            self.master.register_service(name, self.service_uri, self.uri)
+        except BridgeError:
+            with self._lock:
+                self._services.pop(name, None)
+            raise
+
+    def unadvertise_service(self, name: str) -> None:
+        """Stop serving a service (``unregisterService``)."""
+        with self._lock:
+            served = self._services.pop(name, None)
+        if served is not None:
+            with contextlib.suppress(BridgeError):
+                self.master.unregister_service(name, self.service_uri)
+
+    def served_services(self) -> list[str]:
+        """Names of the services this node serves to ROS 1."""
+        with self._lock:
+            return sorted(self._services)
+
+    def service_calls(self, name: str) -> tuple[int, int]:
+        """``(calls, failures)`` ROS 1 clients made of a served service."""
+        with self._lock:
+            served = self._services.get(name)
+        return (0, 0) if served is None else (served.calls, served.failures)
+
     # ------------------------------------------------------------------ TCPROS server
     def _accept_loop(self) -> None:
         while not self._closed:
@@ -426,13 +487,12 @@ class Ros1Node:
             _log.warning("dropped TCPROS connection from %s: %s", addr, exc)
             sock.close()
             return
+        if "service" in header and "topic" not in header:
+            self._serve_service(sock, header, addr)
+            return
         missing = [k for k in ("topic", "md5sum", "callerid") if k not in header]
         if missing:
-            if "service" in header:
-                self._refuse(sock, "visnav's ROS 1 bridge serves no services", addr)
-            else:
-                text = f"header from {addr} lacks {', '.join(missing)}"
-                self._refuse(sock, text, addr)
+            self._refuse(sock, f"header from {addr} lacks {', '.join(missing)}", addr)
             return
         topic, peer = header["topic"], header["callerid"]
         with self._lock:
@@ -477,6 +537,16 @@ class Ros1Node:
             self._on_demand(topic)
         self._room(topic)
         conn.run()
+
+    def _serve_service(self, sock: socket.socket, header: dict[str, str], addr: str) -> None:
+        name = header["service"]
+        peer = header.get("callerid", addr)
+        with self._lock:
+            served = self._services.get(name)
+        if served is None:
+            self._refuse(sock, f"{self.name} does not provide service {name}", peer)
+            return
+        serve_service_connection(sock, header, served, caller_id=self.name, peer=peer)
 
     def _out_closed(self, conn: OutConnection) -> None:
         with self._lock:
@@ -582,6 +652,9 @@ class Ros1Node:
                 return
             topics_out = list(self._pubs)
             topics_in = list(self._subs)
+            services = list(self._services)
+        for name in services:
+            self.unadvertise_service(name)
         for topic in topics_out:
             self.unadvertise(topic)
         for topic in topics_in:

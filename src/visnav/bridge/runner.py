@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from visnav.bridge.bridge import BridgeOptions, Ros1Bridge
 from visnav.bridge.master import Ros1Master
-from visnav.bridge.master_api import advertised_host, master_uri_from_env
+from visnav.bridge.master_api import master_uri_from_env, node_addresses
 from visnav.bridge.ros1_node import Ros1Node
 from visnav.graph import Context, Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
@@ -41,14 +41,17 @@ def open_ros1_node(
 
     Raises:
         MasterUnreachableError: no master answers (the message says how to start one).
-        BridgeError: ``ROS_MASTER_URI`` is malformed.
+        BridgeError: ``ROS_MASTER_URI`` is malformed, or ``ROS_IP`` / ``ROS_HOSTNAME`` is
+            not an address of this machine.
     """
     env = os.environ if env is None else env
     uri = master_uri or master_uri_from_env(env)
+    host, bind = node_addresses(uri, env)
     node = Ros1Node(
         name,
         master_uri=uri,
-        host=advertised_host(env),
+        host=host,
+        bind=bind,
         on_shutdown=on_shutdown,
         on_demand=on_demand,
     )
@@ -65,11 +68,18 @@ def open_ros1_node(
 class BridgeParams:
     """The ``ros1_bridge`` node's parameters (read once at start).
 
-    ``topics`` and ``exclude`` default to ``[""]``, a typed placeholder for "none given".
+    ``topics``, ``exclude``, ``services`` and ``actions`` default to ``[""]``, a typed
+    placeholder for "none given".
     """
 
     topics: tuple[str, ...] = param(("",), description="shell-style topic patterns to bridge")
-    exclude: tuple[str, ...] = param(("",), description="shell-style topic patterns to leave out")
+    exclude: tuple[str, ...] = param(
+        ("",), description="shell-style patterns of topics, services and actions to leave out"
+    )
+    services: tuple[str, ...] = param(("",), description="shell-style service patterns to bridge")
+    actions: tuple[str, ...] = param(
+        ("",), description="shell-style patterns of actions offered as actionlib servers"
+    )
     ros1_node_name: str = param(DEFAULT_NODE_NAME, description="the bridge's ROS 1 node name")
     master_uri: str = param("", description="ROS 1 master ('': ROS_MASTER_URI)")
     serve_master_port: int = param(
@@ -80,10 +90,10 @@ class BridgeParams:
 class Ros1BridgeNode(Node):
     """The ``ros1_bridge`` node: bridges this visnav graph with the ROS 1 graph.
 
-    Parameters (ROS 1 names where ros1_bridge has them): ``topics`` and ``exclude`` (lists of
-    shell-style patterns), ``ros1_node_name`` (default ``visnav_bridge``), ``master_uri``
-    (default ``ROS_MASTER_URI``), ``serve_master_port`` (0: use an existing master; a port:
-    serve a master on 127.0.0.1 there).
+    Parameters (ROS 1 names where ros1_bridge has them): ``topics``, ``services``, ``actions``
+    and ``exclude`` (lists of shell-style patterns), ``ros1_node_name`` (default
+    ``visnav_bridge``), ``master_uri`` (default ``ROS_MASTER_URI``), ``serve_master_port``
+    (0: use an existing master; a port: serve a master on 127.0.0.1 there).
 
     Args:
         name: visnav node name (default ``ros1_bridge``).
@@ -113,7 +123,10 @@ class Ros1BridgeNode(Node):
                 self.master.close()
             raise
         options = BridgeOptions(
-            topics=tuple(str(t) for t in topics if t), exclude=tuple(str(t) for t in exclude if t)
+            topics=tuple(str(t) for t in topics if t),
+            exclude=tuple(str(t) for t in exclude if t),
+            services=tuple(str(t) for t in params.services if t),
+            actions=tuple(str(t) for t in params.actions if t),
         )
         self.bridge = Ros1Bridge(self, self.ros1, options)
 
@@ -142,6 +155,8 @@ def run_bridge(
     *,
     topics: Sequence[str] = (),
     exclude: Sequence[str] = (),
+    services: Sequence[str] = (),
+    actions: Sequence[str] = (),
     serve_master_port: int | None = None,
     node_name: str = DEFAULT_NODE_NAME,
     duration_s: float | None = None,
@@ -152,7 +167,9 @@ def run_bridge(
     Args:
         ctx: the visnav graph.
         topics: patterns of topics to bridge (empty: all).
-        exclude: patterns of topics not to bridge.
+        exclude: patterns of topics, services and actions not to bridge.
+        services: patterns of services to bridge (empty: all whose types cross).
+        actions: patterns of visnav actions to offer as actionlib servers (empty: all).
         serve_master_port: serve a ROS 1 master on 127.0.0.1 at this port first.
         node_name: the ROS 1 node name.
         duration_s: stop after this many seconds.
@@ -174,7 +191,13 @@ def run_bridge(
             on_shutdown=lambda _why: _stop(stop, ctx),
         )
         node = Node("ros1_bridge", context=ctx)
-        bridge = Ros1Bridge(node, ros1, BridgeOptions(topics=tuple(topics), exclude=tuple(exclude)))
+        options = BridgeOptions(
+            topics=tuple(topics),
+            exclude=tuple(exclude),
+            services=tuple(services),
+            actions=tuple(actions),
+        )
+        bridge = Ros1Bridge(node, ros1, options)
         _log.info("bridging ROS 1 master %s as %s (%s)", ros1.master.uri, ros1.name, ros1.uri)
         if ready is not None:
             ready.set()

@@ -20,6 +20,7 @@ from rosbags.serde import SerdeError
 
 from visnav.bag.typeconv import HEADER, noetic_store, ros1_definition, same_wire_format
 from visnav.bridge.errors import TcprosError, UnconvertibleTypeError
+from visnav.msgs.gazebo_msgs import GAZEBO_MSGS
 from visnav.msgs.serde import typestore
 
 __all__ = [
@@ -33,8 +34,9 @@ __all__ = [
 ]
 
 # Types ROS 1 Noetic has (same definition as Humble's with ROS 1's Header) that rosbags'
-# Noetic store leaves out.
-_NOETIC_OUTSIDE_STORE = frozenset({"tf2_msgs/msg/TFMessage", "tf2_msgs/msg/TF2Error"})
+# Noetic store leaves out: tf2_msgs, and the gazebo_msgs visnav knows (their .msg files are
+# the same in ROS 1 and ROS 2: visnav.msgs.gazebo_msgs).
+_NOETIC_OUTSIDE_STORE = frozenset({"tf2_msgs/msg/TFMessage", "tf2_msgs/msg/TF2Error", *GAZEBO_MSGS})
 
 _DECODE_ERRORS = (SerdeError, struct.error, IndexError, ValueError, KeyError, TypeError)
 

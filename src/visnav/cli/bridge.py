@@ -18,14 +18,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="bridge this graph with a ROS 1 master (ROS_MASTER_URI, ROS_IP/ROS_HOSTNAME)",
         description=(
             "Every visnav topic appears in ROS 1; every ROS 1 topic a visnav node subscribes "
-            "to is brought in. See docs/ros1.md."
+            "to is brought in. Services cross both ways; visnav actions appear as actionlib "
+            "servers. See docs/ros1.md."
         ),
     )
     p.add_argument(
         "--topics", nargs="+", default=[], metavar="PAT", help="bridge only these (shell patterns)"
     )
     p.add_argument(
-        "--exclude", nargs="+", default=[], metavar="PAT", help="never bridge these patterns"
+        "--exclude",
+        nargs="+",
+        default=[],
+        metavar="PAT",
+        help="never bridge topics, services or actions matching these patterns",
+    )
+    p.add_argument(
+        "--services",
+        nargs="+",
+        default=[],
+        metavar="PAT",
+        help="bridge only these services (shell patterns; default: all whose types exist in ROS 1)",
+    )
+    p.add_argument(
+        "--actions",
+        nargs="+",
+        default=[],
+        metavar="PAT",
+        help="offer only these visnav actions as ROS 1 actionlib servers (default: all)",
     )
     p.add_argument(
         "--serve-master",
@@ -50,6 +69,8 @@ def cmd_ros1(args: argparse.Namespace) -> int:
             ctx,
             topics=args.topics,
             exclude=args.exclude,
+            services=args.services,
+            actions=args.actions,
             serve_master_port=args.serve_master,
             node_name=args.name,
             duration_s=args.duration,
