@@ -243,10 +243,27 @@ def test_unreadable_and_missing_files(tmp_path: Path) -> None:
         calibrate(images=tmp_path / "empty", pattern=PATTERN)
 
 
-def test_images_of_different_sizes(tmp_path: Path) -> None:
-    small = np.zeros((100, 100), np.uint8)
-    with pytest.raises(CalibrationError, match="b: image is 100x100 but a is 480x360"):
-        calibrate_from_images([("a", views()[0]), ("b", small)], PATTERN, SQUARE)
+def test_an_image_of_another_size_is_skipped_with_a_warning(
+    image_dir: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A stray board view of another size sorts first (as OpenCV's data folder's left.jpg
+    # before left01.jpg): the size most views have is calibrated, the stray one skipped.
+    stray = cv2.resize(views()[3], (600, 450), interpolation=cv2.INTER_LINEAR)
+    assert cv2.imwrite(str(image_dir / "a_stray.png"), stray)
+    assert cv2.imwrite(str(image_dir / "b_blank.png"), np.full((100, 100), 128, np.uint8))
+    with caplog.at_level(logging.WARNING):
+        result = calibrate(images=image_dir, pattern=PATTERN, square=SQUARE)
+    skipped = [r.getMessage() for r in caplog.records if "a_stray.png" in r.getMessage()]
+    assert skipped == [
+        "a_stray.png: image is 600x450 but 12 views are 480x360: one calibration is of one "
+        "camera mode; image skipped"
+    ]
+    assert result.image_size == SIZE
+    assert len(result.per_image_errors) == len(POSES)
+    assert [name for name, _ in result.rejected] == ["b_blank.png", "a_stray.png"]
+    alone = calibrate(images=[image_dir / f"view_{i:02d}.png" for i in range(len(POSES))],
+                      pattern=PATTERN, square=SQUARE)  # fmt: skip
+    np.testing.assert_allclose(result.K, alone.K, rtol=1e-8)  # OpenCV threads: not bitwise
 
 
 @pytest.mark.parametrize(

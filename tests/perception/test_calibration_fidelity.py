@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import struct
 import subprocess
 import sys
@@ -184,6 +185,28 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 # ------------------------------------------------------------------ OpenCV's samples
+
+
+@pytest.mark.slow
+@pytest.mark.ci
+@pytest.mark.skipif(not opencv_sample_files(), reason="opencv-doc (OpenCV's samples) absent")
+def test_a_folder_with_an_image_of_another_size(tmp_path: Path) -> None:
+    # OpenCV's data folder: left.jpg (612x459, a photo) sorts before left01..left14.jpg
+    # (640x480 boards); calibrate skips it with a warning instead of stopping there.
+    for name in ["left.jpg", *(Path(f).name for f in opencv_sample_files())]:
+        shutil.copy(Path(OPENCV_SAMPLES) / name, tmp_path / name)
+    done = run_cli("--images", str(tmp_path), "--pattern", "9x6", "--square", str(SQUARE))
+    assert done.returncode == 0, done.stderr
+    assert "camera 'camera': 640x480, 13 views" in done.stdout
+    assert "left.jpg: chessboard 9x6 not found; image skipped" in done.stderr
+    # The same with a board view of another size: named once, skipped, not used.
+    small = cv2.resize(cv2.imread(str(tmp_path / "left01.jpg")), (320, 240))
+    assert cv2.imwrite(str(tmp_path / "left00_small.jpg"), small)
+    done = run_cli("--images", str(tmp_path), "--pattern", "9x6", "--square", str(SQUARE))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("left00_small.jpg") == 1, done.stderr
+    assert "left00_small.jpg: image is 320x240 but 13 views are 640x480" in done.stderr
+    assert "camera 'camera': 640x480, 13 views" in done.stdout
 
 
 @pytest.mark.slow

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from visnav.graph import Context, Node
+from visnav.graph import Context, Node, Parameter
 from visnav.msgs import CameraInfo, CompressedImage, Image, image_to_numpy
 from visnav.msgs.time import time_to_ns
 from visnav.perception import camera_driver
@@ -246,6 +246,35 @@ def test_usb_cam_video_file_with_calibration_and_rectification(
     assert len(got["image_raw/compressed"]) == FRAMES
     jpeg = image_to_numpy(decompress(got["image_raw/compressed"][0]))
     assert np.mean(np.abs(jpeg.astype(float) - first)) < 6
+
+
+def test_a_video_file_plays_at_its_own_frame_rate(ctx: Context, video: Path) -> None:
+    # The clip was written at 20 fps: played at 20 Hz, not at framerate's default 30.
+    got = _collect(ctx, "/usb_cam", {"image_raw": Image})
+    cam = UsbCamNode(context=ctx, parameter_overrides={"video_device": str(video)})
+    assert cam.settings.rate == pytest.approx(20.0)
+    _run(ctx, cam)
+    stamps = [time_to_ns(m.header.stamp) for m in got["image_raw"]]
+    assert len(stamps) == FRAMES
+    period_s = (stamps[-1] - stamps[0]) / (len(stamps) - 1) / 1e9
+    assert period_s == pytest.approx(0.05, rel=0.2)
+    cam.destroy_node()
+    # A rate that is given still wins (usb_cam framerate, cv_camera rate), in either form
+    # of parameter_overrides; without one cv_camera plays the file at its rate too.
+    given = UsbCamNode(
+        "given", context=ctx, parameter_overrides={"video_device": str(video), "framerate": 30}
+    )
+    assert given.settings.rate == 30.0
+    plain = CvCameraNode(context=ctx, parameter_overrides=[Parameter("file", str(video))])
+    assert plain.settings.rate == pytest.approx(20.0)
+    fixed = CvCameraNode(
+        "fixed",
+        context=ctx,
+        parameter_overrides=[Parameter("file", str(video)), Parameter("rate", 30.0)],
+    )
+    assert fixed.settings.rate == 30.0
+    for node in (given, plain, fixed):
+        node.destroy_node()
 
 
 def test_cv_camera_file_bgr_and_rescaled_calibration(

@@ -446,16 +446,47 @@ def test_unknown_distortion_model(make_info):
 
 
 @pytest.mark.parametrize(
-    ("model", "d"),
+    ("model", "d", "expected"),
     [
-        ("plumb_bob", [0.1, 0.01, 0.0, 0.0]),
-        ("rational_polynomial", [0.1, 0.01, 0.0, 0.0, 0.0]),
-        ("equidistant", [0.1, 0.01, 0.0, 0.0, 0.0]),
+        ("plumb_bob", [0.1, 0.01, 0.0, 0.0, 0.0, 0.0], "OpenCV takes 4"),
+        ("rational_polynomial", [0.1, 0.01, 0.0], "OpenCV takes 4"),
+        ("", [0.1, 0.01, 0.0, 0.0, 0.0, 0.0, 0.0], "an empty distortion_model: OpenCV takes"),
+        ("equidistant", [0.1, 0.01, 0.0, 0.0, 0.0], "expected 4"),
     ],
 )
-def test_d_length_must_fit_the_model(make_info, model, d):
-    with pytest.raises(CameraModelError, match=rf"d has {len(d)} coefficients.*{model}.*expected"):
+def test_d_length_must_be_one_opencv_takes(make_info, model, d, expected):
+    with pytest.raises(CameraModelError, match=rf"d has {len(d)} coefficients.*{expected}"):
         PinholeCameraModel.from_camera_info(make_info(distortion_model=model, d=d))
+
+
+@pytest.mark.parametrize(
+    ("model", "d", "applied", "warned"),
+    [
+        ("plumb_bob", [0.1, 0.01, 0.001, 0.002], "plumb_bob", False),
+        ("", [0.1, 0.01, 0.001, 0.002], "plumb_bob", True),
+        ("", [0.1, 0.01, 0.001, 0.002, 0.003], "plumb_bob", True),
+        ("rational_polynomial", [0.1, 0.01, 0.001, 0.002, 0.003], "plumb_bob", True),
+        ("plumb_bob", [0.1, 0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0], "rational_polynomial", True),
+        ("rational_polynomial", [0.1, 0.01] + [0.0] * 10, "rational_polynomial", False),
+        ("", [0.1, 0.01] + [0.0] * 12, "rational_polynomial", True),
+    ],
+)
+def test_d_is_read_by_length_as_opencv_does(make_info, caplog, model, d, applied, warned):
+    # image_geometry hands D to OpenCV as it is: OpenCV reads 4/5 as plumb_bob (4 padded
+    # with k3 = 0) and 8/12/14 as its rational model; an empty model name the same way.
+    caplog.set_level("WARNING", logger="visnav.perception.camera_model")
+    info = make_info(distortion_model=model, d=d)
+    camera = PinholeCameraModel.from_camera_info(info)
+    assert camera.distortion_model == applied
+    assert camera.D.tolist() == ([*d, 0.0] if len(d) == 4 else d)
+    raw = np.array([[10.0, 20.0], [600.0, 400.0]])
+    k = camera.K
+    want = cv2.undistortPoints(raw.reshape(-1, 1, 2), k, np.array(d), R=camera.R, P=camera.P)
+    np.testing.assert_allclose(camera.rectify_point(raw), want.reshape(-1, 2), rtol=1e-12)
+    camera.from_camera_info(info)  # an update with the same assumption says nothing more
+    assert len(caplog.records) == int(warned)
+    if warned:
+        assert f"applied as {applied!r}" in caplog.records[0].getMessage()
 
 
 def test_other_bad_calibrations(make_info):

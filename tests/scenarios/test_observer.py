@@ -243,3 +243,57 @@ def test_car_slam_scores_and_files_from_slam_topics(
 def test_an_unknown_scenario_is_refused() -> None:
     with Context(transport="local") as ctx, pytest.raises(ScenarioError, match="car or drone"):
         ObserverNode(context=ctx, parameter_overrides={"scenario": "boat"})
+
+
+def test_slam_frames_include_the_frames_tracked_after_the_last_status(tmp_path: Path) -> None:
+    """The counters are a status up to 1 s old: ``frames`` adds the poses after it."""
+    params = _params(tmp_path, slam=True, exit_when_done=False)
+    ms = 1_000_000
+    with Context(transport="local") as ctx:
+        obs = ObserverNode(context=ctx, use_sim_time=True, parameter_overrides=params)
+        feed = Feed(ctx)
+        node = Node("slam_feed", context=ctx)
+        pose_pub = node.create_publisher(PoseStamped, "/slam/pose", 20)
+        for k in range(51):
+            feed.pose(k * 20 * ms, 0.02 * k, 0.0)
+        # 10 tracked frames at 0..900 ms; the last status counted 7 frames up to the one
+        # of 500 ms (one of them lost, so no pose), then the node tracked 4 more.
+        for k in range(10):
+            pose_pub.publish(_slam_pose(k * 100 * ms, 0.1 * k, 0.0))
+        values = {"frames": "7", "keyframes": "2", "last_frame_stamp_ns": str(500 * ms)}
+        kv = [make(KV, key=k, value=v) for k, v in values.items()]
+        feed.diag.publish(make(DIAG, status=[make(DSTATUS, name="/slam", values=kv)]))
+        feed.tick(1000 * ms)
+        slam = obs.finish()["slam"]
+        assert slam["tracked"] == 10
+        assert slam["frames"] == 7 + 4
+        assert slam["tracked"] <= slam["frames"]
+        assert "last_frame_stamp_ns" not in slam
+        # A SLAM node that does not say which frames it counted: its counter as it is.
+        del values["last_frame_stamp_ns"]
+        kv = [make(KV, key=k, value=v) for k, v in values.items()]
+        feed.diag.publish(make(DIAG, status=[make(DSTATUS, name="/slam", values=kv)]))
+        feed.tick(1001 * ms)
+        assert obs.results()["slam"]["frames"] == 7
+
+
+def test_shortest_path_ends_where_the_robot_stopped(tmp_path: Path) -> None:
+    # The navigator stops within its tolerance short of the goal (0.3 m here, inside the
+    # observer's 0.5 m): the shortest path is measured to the same point, ratio >= 1.
+    params = _params(tmp_path, exit_when_done=False)
+    ms = 1_000_000
+    with Context(transport="local") as ctx:
+        obs = ObserverNode(context=ctx, use_sim_time=True, parameter_overrides=params)
+        feed = Feed(ctx)
+        for k in range(28):
+            feed.pose(k * 100 * ms, -6.0, -1.5 + 0.1 * k)  # stops at y = 1.2
+            if k == 0:
+                feed.send_goal(0, -6.0, 1.5)
+            feed.tick(k * 100 * ms)
+        feed.end_goal(1, 3, 0, 2800 * ms)
+        feed.tick(2800 * ms)
+        out = obs.results()
+    assert out["goals_reached"] == 1
+    assert out["path_length_m"] == pytest.approx(2.7, abs=1e-3)
+    assert 2.65 < out["shortest_path_m"] <= 2.75  # to y = 1.2, not to the goal at 1.5
+    assert out["path_ratio"] >= 0.98

@@ -131,6 +131,8 @@ def test_a_result_is_applied_at_its_stamp_plus_the_latency(
     values = {kv.key: kv.value for kv in status.values}
     assert status.message == "tracking"
     assert values["frames"] == "8"
+    # the stamp of the last frame the counters include: the eighth, the last pose's
+    assert values["last_frame_stamp_ns"] == str(time_to_ns(rig.poses[-1][1].header.stamp))
     assert float(values["cpu_s"]) > 0
     slam.destroy_node()
 

@@ -14,7 +14,12 @@ __all__ = ["add_arguments"]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``calibrate`` options."""
     src = parser.add_mutually_exclusive_group()
-    src.add_argument("--images", metavar="DIR", help="a directory of chessboard images")
+    src.add_argument(
+        "--images",
+        metavar="DIR",
+        help="a directory of chessboard images (images of another size than most views "
+        "are skipped, each with a warning)",
+    )
     src.add_argument("--bag", metavar="BAG", help="a bag (rosbag2 or ROS 1); needs --topic")
     parser.add_argument("--topic", help="image topic: live without --bag, else in the bag")
     parser.add_argument("--pattern", default="9x6", help="inner corners, COLSxROWS (default 9x6)")

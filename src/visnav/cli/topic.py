@@ -12,7 +12,8 @@ from visnav.cli._common import cli_node
 from visnav.errors import VisnavError
 from visnav.graph.introspect import subscription_qos_for, topic_type
 from visnav.graph.monitor import BandwidthMeter, DelayMeter, RateMeter
-from visnav.graph.node import Publisher
+from visnav.graph.node import Node, Publisher
+from visnav.graph.parameters import Parameter
 from visnav.graph.qos import DurabilityPolicy, QoSProfile
 from visnav.msgs.construct import get_field, message_from_dict, message_to_yaml
 from visnav.msgs.errors import MessageError
@@ -63,17 +64,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--field", help="print only this field (dotted path, e.g. header.stamp)")
     p.add_argument("--truncate-length", type=int, default=128, help="cut arrays/strings")
     p.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
+    p.add_argument(
+        "--offset",
+        action="store_true",
+        help="print every time in the message (header.stamp, ...) as seconds from now: "
+        "sim time when a node publishes /clock (rostopic echo --offset)",
+    )
+    p.add_argument("--wall", action="store_true", help="with --offset: from the wall clock")
     p.set_defaults(func=cmd_echo)
 
     for name, helptext in (
-        ("hz", "print the receive rate"),
+        ("hz", "print the receive rate (in sim time when the graph has a /clock)"),
         ("bw", "print the bandwidth"),
-        ("delay", "print receive time minus header.stamp"),
+        ("delay", "print receive time minus header.stamp (sim time when on /clock)"),
     ):
         p = sub.add_parser(name, help=helptext)
         p.add_argument("topic")
         p.add_argument("-w", "--window", type=int, default=10000 if name != "bw" else 100)
-        p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+        p.add_argument("--duration", type=float, default=None, help="stop after S wall seconds")
+        if name != "bw":
+            p.add_argument(
+                "--wall",
+                action="store_true",
+                help="measure in wall-clock time even when a node publishes /clock",
+            )
         p.set_defaults(func=cmd_measure, measure=name)
 
     p = sub.add_parser("pub", help="publish a message")
@@ -182,21 +196,36 @@ def _resolve_type(node: Any, topic: str, type_arg: str | None) -> type[Any]:
 
 
 def cmd_echo(args: argparse.Namespace) -> int:
-    """``topic echo``."""
+    """``topic echo``; with ``--offset`` times print as seconds from now (sim time on /clock)."""
     with cli_node(args) as node:
         cls = _resolve_type(node, args.topic, args.type)
         qos = subscription_qos_for(node.context, args.topic)
         done: list[bool] = [False]
+        sim = args.offset and not args.wall and _graph_runs_on_clock(node)
+        if sim:
+            node.set_parameters([Parameter("use_sim_time", value=True)])
+        clock = node.get_clock()
 
         def on_msg(msg: Any) -> None:
+            offset = None
+            if args.offset:
+                offset = clock.now_ns() if sim else time.time_ns()
+                if offset == 0:
+                    return  # no /clock message yet: no now to offset from
+            cut = args.truncate_length
             if args.field:
                 value = get_field(msg, args.field)
-                if hasattr(value, "__msgtype__"):
-                    text = message_to_yaml(value, truncate_length=args.truncate_length)
+                if (
+                    offset is not None
+                    and getattr(value, "__msgtype__", "") == "builtin_interfaces/msg/Time"
+                ):
+                    text = str((time_to_ns(value) - offset) / 1e9)
+                elif hasattr(value, "__msgtype__"):
+                    text = message_to_yaml(value, truncate_length=cut, time_offset_ns=offset)
                 else:
                     text = str(value)
             else:
-                text = message_to_yaml(msg, truncate_length=args.truncate_length)
+                text = message_to_yaml(msg, truncate_length=cut, time_offset_ns=offset)
             print(text)
             print("---", flush=True)
             if args.once:
@@ -214,13 +243,27 @@ def cmd_echo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _graph_runs_on_clock(node: Node) -> bool:
+    """Whether some node publishes ``/clock`` (a simulation or ``bag play --clock``)."""
+    return any(e.kind == "publisher" for e in node.context.graph.endpoints("/clock"))
+
+
 def cmd_measure(args: argparse.Namespace) -> int:
-    """``topic hz | bw | delay``: print statistics every second."""
+    """``topic hz | bw | delay``: print statistics every second.
+
+    ``hz`` and ``delay`` count in sim time when a node publishes ``/clock`` (as rostopic
+    under ``/use_sim_time``), unless ``--wall``; ``hz`` then prints the wall-clock rate
+    on a third line. ``bw`` is always wall-clock (as rostopic bw).
+    """
     with cli_node(args) as node:
         cls = get_message_class(topic_type(node.context, args.topic))
         qos = subscription_qos_for(node.context, args.topic)
         clock = node.get_clock()
-        rate, bw, delay = (
+        sim = args.measure != "bw" and not args.wall and _graph_runs_on_clock(node)
+        if sim:
+            node.set_parameters([Parameter("use_sim_time", value=True)])
+        rate, wall_rate, bw, delay = (
+            RateMeter(args.window),
             RateMeter(args.window),
             BandwidthMeter(args.window),
             DelayMeter(args.window),
@@ -228,8 +271,12 @@ def cmd_measure(args: argparse.Namespace) -> int:
 
         def on_msg(msg: Any) -> None:
             now = time.time_ns()
+            sim_now = clock.now_ns() if sim else 0
+            if sim and sim_now == 0:
+                return  # no /clock message yet: nothing to count in
             if args.measure == "hz":
-                rate.add(time.monotonic_ns())
+                wall_rate.add(time.monotonic_ns())
+                rate.add(sim_now if sim else time.monotonic_ns())
             elif args.measure == "bw":
                 bw.add(time.monotonic_ns(), len(serialize(msg)))
             else:
@@ -239,9 +286,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
                         f"topic '{args.topic}' ({msg.__msgtype__}) has no header to measure delay"
                     )
                     raise MessageError(text)
-                delay.add(
-                    clock.now_ns() if clock.ros_time_is_active else now, time_to_ns(header.stamp)
-                )
+                delay.add(sim_now if sim else now, time_to_ns(header.stamp))
 
         node.create_subscription(cls, args.topic, on_msg, qos)
         start = time.monotonic()
@@ -252,7 +297,12 @@ def cmd_measure(args: argparse.Namespace) -> int:
                 next_print += 1.0
                 meter: Any = {"hz": rate, "bw": bw, "delay": delay}[args.measure]
                 stats = meter.stats()
-                print(stats.format() if stats else "no new messages", flush=True)
+                text = stats.format() if stats else "no new messages"
+                if stats and sim:
+                    text += "\n\tin sim time (/clock)"
+                    wall = wall_rate.stats() if args.measure == "hz" else None
+                    text += f"; wall-clock rate: {wall.rate_hz:.3f}" if wall else ""
+                print(text, flush=True)
     return 0
 
 

@@ -172,28 +172,34 @@ def message_from_dict(type_name: str, values: Mapping[str, Any], *, path: str = 
     return msg
 
 
-def message_to_dict(msg: Any, *, truncate_length: int | None = None) -> dict[str, Any]:
+def message_to_dict(
+    msg: Any, *, truncate_length: int | None = None, time_offset_ns: int | None = None
+) -> dict[str, Any]:
     """Return a message as nested plain data (dicts, lists, numbers, strings).
 
     Args:
         msg: the message.
         truncate_length: cut arrays and strings longer than this (with a trailing ``"..."``).
+        time_offset_ns: if given, every ``builtin_interfaces/Time`` in the message becomes
+            its offset from this time in float seconds (rostopic echo ``--offset``).
     """
     out: dict[str, Any] = {}
     for name, _desc in message_fields(msg_type_name(msg)):
-        out[name] = _plain(getattr(msg, name), truncate_length)
+        out[name] = _plain(getattr(msg, name), truncate_length, time_offset_ns)
     return out
 
 
-def _plain(value: Any, limit: int | None) -> Any:
+def _plain(value: Any, limit: int | None, offset_ns: int | None = None) -> Any:
     if hasattr(value, "__msgtype__"):
-        return message_to_dict(value, truncate_length=limit)
+        if offset_ns is not None and value.__msgtype__ == "builtin_interfaces/msg/Time":
+            return (int(value.sec) * 1_000_000_000 + int(value.nanosec) - offset_ns) / 1e9
+        return message_to_dict(value, truncate_length=limit, time_offset_ns=offset_ns)
     if isinstance(value, np.ndarray):
         items = value[:limit].tolist() if limit is not None else value.tolist()
         return [*items, "..."] if limit is not None and len(value) > limit else items
     if isinstance(value, list):
         cut = value[:limit] if limit is not None else value
-        items = [_plain(v, limit) for v in cut]
+        items = [_plain(v, limit, offset_ns) for v in cut]
         return [*items, "..."] if limit is not None and len(value) > limit else items
     if isinstance(value, str) and limit is not None and len(value) > limit:
         return value[:limit] + "..."
@@ -254,7 +260,12 @@ def _scalar(v: Any) -> str:
     return str(v)
 
 
-def message_to_yaml(msg: Any, *, truncate_length: int | None = 128) -> str:
-    """Return a message as YAML text in the layout of ``ros2 topic echo``."""
-    data = message_to_dict(msg, truncate_length=truncate_length)
+def message_to_yaml(
+    msg: Any, *, truncate_length: int | None = 128, time_offset_ns: int | None = None
+) -> str:
+    """Return a message as YAML text in the layout of ``ros2 topic echo``.
+
+    ``time_offset_ns`` as :func:`message_to_dict`'s.
+    """
+    data = message_to_dict(msg, truncate_length=truncate_length, time_offset_ns=time_offset_ns)
     return "\n".join(_yaml_lines(data, 0))

@@ -9,6 +9,7 @@ REP 104 expects.
 from __future__ import annotations
 
 import difflib
+import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -24,9 +25,11 @@ if TYPE_CHECKING:
 __all__ = [
     "DISTORTION_MODELS",
     "EQUIDISTANT",
+    "OPENCV_D_LENGTHS",
     "PLUMB_BOB",
     "RATIONAL_POLYNOMIAL",
     "Calibration",
+    "ParsedCameraInfo",
     "Roi",
     "RoiState",
     "as_points",
@@ -35,6 +38,8 @@ __all__ = [
     "shaped",
 ]
 
+_LOG = logging.getLogger("visnav.perception.camera_model")
+
 PLUMB_BOB = "plumb_bob"
 RATIONAL_POLYNOMIAL = "rational_polynomial"
 EQUIDISTANT = "equidistant"
@@ -42,10 +47,23 @@ EQUIDISTANT = "equidistant"
 #: Distortion models this camera model applies, with the length REP 104 gives ``D``.
 DISTORTION_MODELS: dict[str, int] = {PLUMB_BOB: 5, RATIONAL_POLYNOMIAL: 8, EQUIDISTANT: 4}
 
+#: Lengths of ``D`` OpenCV's pinhole model takes (``cv2.undistortPoints`` and friends):
+#: k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tau_x tau_y]]]]. image_geometry hands ``D``
+#: to OpenCV as it is, so a plumb_bob or rational_polynomial camera_info of any of
+#: these lengths works in ROS.
+OPENCV_D_LENGTHS: tuple[int, ...] = (4, 5, 8, 12, 14)
+
 _COEFFICIENT_NAMES = {
     PLUMB_BOB: "k1, k2, p1, p2, k3",
     RATIONAL_POLYNOMIAL: "k1, k2, p1, p2, k3, k4, k5, k6",
     EQUIDISTANT: "k1, k2, k3, k4",
+}
+_OPENCV_NAMES = {
+    4: "k1, k2, p1, p2; k3 = 0",
+    5: "k1, k2, p1, p2, k3",
+    8: "k1, k2, p1, p2, k3, k4, k5, k6",
+    12: "k1..k6 and the thin-prism s1, s2, s3, s4",
+    14: "k1..k6, s1..s4 and the tilt tau_x, tau_y",
 }
 Roi = tuple[int, int, int, int]
 """A region of interest ``(x_offset, y_offset, width, height)`` in pixels."""
@@ -75,6 +93,34 @@ class RoiState:
     do_rectify: bool
 
 
+@dataclass(frozen=True)
+class ParsedCameraInfo:
+    """What :func:`parse_camera_info` found: the calibration, the ROI and what it assumed.
+
+    Attributes:
+        calibration: the normalized calibration (the distortion model applied and
+            its coefficients, 4 padded to 5).
+        roi: the region of interest (all zero read as the full image).
+        assumption: None, or a key and a warning text when the distortion model was
+            inferred from ``D`` (an empty ``distortion_model``, or a name whose length
+            OpenCV reads as the other model): the camera model logs it once.
+    """
+
+    calibration: Calibration
+    roi: RoiState
+    assumption: tuple[str, str] | None = None
+
+    def warn_once(self, seen: set[str], *, camera: str, frame: str) -> None:
+        """Log the assumption unless ``seen`` (the model's own set) has it; add it there.
+
+        The logger is ``visnav.perception.camera_model``.
+        """
+        if self.assumption is None or self.assumption[0] in seen:
+            return
+        seen.add(self.assumption[0])
+        _LOG.warning("%s (frame %r): %s", camera, frame, self.assumption[1])
+
+
 def _floats(value: Any, field: str, length: int | None) -> tuple[float, ...]:
     try:
         arr = np.asarray(value, dtype=np.float64).reshape(-1)
@@ -94,8 +140,8 @@ def _format_list(values: tuple[float, ...]) -> str:
     return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
 
-def parse_camera_info(info: CameraInfo) -> tuple[Calibration, RoiState]:
-    """Validate a CameraInfo and return its normalized calibration and ROI."""
+def parse_camera_info(info: CameraInfo) -> ParsedCameraInfo:
+    """Validate a CameraInfo and return its normalized calibration, ROI and assumption."""
     width, height = int(info.width), int(info.height)
     if width <= 0 or height <= 0:
         text = (
@@ -128,25 +174,8 @@ def parse_camera_info(info: CameraInfo) -> tuple[Calibration, RoiState]:
     if p[0] == 0.0 or p[5] == 0.0:
         text = f"CameraInfo.p is {_format_list(p)}: fx' (p[0]) and fy' (p[5]) must be non-zero"
         raise CameraModelError(text)
-    model = str(info.distortion_model)
+    model, d, assumption = _distortion(str(info.distortion_model), d)
     nonzero = any(d)
-    if model in DISTORTION_MODELS:
-        expected = DISTORTION_MODELS[model]
-        if nonzero and len(d) != expected:
-            text = (
-                f"CameraInfo.d has {len(d)} coefficients {_format_list(d)} for distortion_model "
-                f"{model!r}: expected {expected} ({_COEFFICIENT_NAMES[model]}); "
-                "fix the calibration file or the distortion_model name"
-            )
-            raise CameraModelError(text)
-    elif nonzero:
-        close = difflib.get_close_matches(model, list(DISTORTION_MODELS), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        text = (
-            f"CameraInfo.distortion_model is {model!r} with non-zero d {_format_list(d)}: "
-            f"expected one of {', '.join(DISTORTION_MODELS)} (REP 104){hint}"
-        )
-        raise CameraModelError(text)
     if nonzero and not any(r):
         text = (
             "CameraInfo.r is all zero but d is non-zero: rectification needs R; "
@@ -172,7 +201,68 @@ def parse_camera_info(info: CameraInfo) -> tuple[Calibration, RoiState]:
         )
         raise CameraModelError(text)
     calib = Calibration(width, height, model, d, k, r, p, binning_x, binning_y)
-    return calib, RoiState(rx, ry, rw, rh, bool(roi.do_rectify))
+    return ParsedCameraInfo(calib, RoiState(rx, ry, rw, rh, bool(roi.do_rectify)), assumption)
+
+
+def _distortion(
+    model: str, d: tuple[float, ...]
+) -> tuple[str, tuple[float, ...], tuple[str, str] | None]:
+    """Return the distortion model applied, its coefficients and what was assumed.
+
+    As image_geometry (which hands ``D`` to OpenCV as it is) and OpenCV: plumb_bob and
+    rational_polynomial take any length OpenCV takes, read by length (4 and 5 are
+    plumb_bob, 4 padded with k3 = 0; 8, 12 and 14 the rational model, the last two with
+    thin-prism and tilt terms); an empty ``distortion_model`` with a non-zero ``D`` is
+    read the same way. equidistant takes exactly 4 (``cv2.fisheye``); any other name
+    with a non-zero ``D`` is refused.
+    """
+    if not any(d):
+        return model, d, None
+    n = len(d)
+    if model == EQUIDISTANT:
+        if n == DISTORTION_MODELS[EQUIDISTANT]:
+            return model, d, None
+        text = (
+            f"CameraInfo.d has {n} coefficients {_format_list(d)} for distortion_model "
+            f"'equidistant': expected 4 ({_COEFFICIENT_NAMES[EQUIDISTANT]}, OpenCV's "
+            "fisheye model); fix the calibration file or the distortion_model name"
+        )
+        raise CameraModelError(text)
+    if model and model not in DISTORTION_MODELS:
+        close = difflib.get_close_matches(model, list(DISTORTION_MODELS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        text = (
+            f"CameraInfo.distortion_model is {model!r} with non-zero d {_format_list(d)}: "
+            f"expected one of {', '.join(DISTORTION_MODELS)} (REP 104){hint}"
+        )
+        raise CameraModelError(text)
+    if n not in OPENCV_D_LENGTHS:
+        named = f"distortion_model {model!r}" if model else "an empty distortion_model"
+        lengths = ", ".join(f"{k} ({v})" for k, v in _OPENCV_NAMES.items())
+        text = (
+            f"CameraInfo.d has {n} coefficients {_format_list(d)} for {named}: OpenCV takes "
+            f"{lengths}; fix the calibration file"
+        )
+        raise CameraModelError(text)
+    applied = PLUMB_BOB if n <= DISTORTION_MODELS[PLUMB_BOB] else RATIONAL_POLYNOMIAL
+    padded = (*d, 0.0) if n == DISTORTION_MODELS[PLUMB_BOB] - 1 else d
+    if model == applied:
+        return model, padded, None
+    if model:
+        key = f"{model}->{applied}"
+        text = (
+            f"CameraInfo.distortion_model is {model!r} but d has {n} coefficients "
+            f"{_format_list(d)}: applied as {applied!r} ({_OPENCV_NAMES[n]}), as image_geometry "
+            f"and OpenCV read them; set distortion_model: {applied} (REP 104) in the calibration"
+        )
+    else:
+        key = f"''->{applied}"
+        text = (
+            f"CameraInfo.distortion_model is empty with non-zero d {_format_list(d)}: applied "
+            f"as {applied!r} ({_OPENCV_NAMES[n]}), as image_geometry and OpenCV read {n} "
+            f"coefficients; set distortion_model: {applied} (REP 104) in the calibration"
+        )
+    return applied, padded, (key, text)
 
 
 def binned(

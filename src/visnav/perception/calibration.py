@@ -263,8 +263,9 @@ def calibrate_from_images(
         The :class:`CalibrationResult`.
 
     Raises:
-        CalibrationError: an unreadable or oversized image, images of different sizes,
-            fewer than ``min_views`` usable views, degenerate views, or invalid parameters.
+        CalibrationError: an unreadable or oversized image, fewer than ``min_views``
+            usable views, degenerate views, or invalid parameters. Views of another size
+            than most views are skipped with one warning each (not used in the result).
     """
     pattern = parse_pattern(pattern)
     if isinstance(square, bool) or not isinstance(square, (int, float)) or not square > 0:
@@ -283,30 +284,36 @@ def calibrate_from_images(
     log: WarningLogger = logger if logger is not None else default_logger()
 
     size: tuple[int, int] | None = None
-    first_name = ""
-    names: list[str] = []
-    image_points: list[NDArray[np.float32]] = []
+    # Board views by image size: the size with the most views is calibrated, the others
+    # are skipped with a warning each (a folder may hold a stray image of another size).
+    views: dict[tuple[int, int], list[tuple[str, NDArray[np.float32]]]] = {}
     rejected: list[tuple[str, str]] = []
     total = 0
     for index, source in enumerate(images):
         total += 1
         name, gray = _load(source, index)
         this_size = (int(gray.shape[1]), int(gray.shape[0]))
-        if size is None:
-            size, first_name = this_size, name
-        elif this_size != size:
-            text = (
-                f"{name}: image is {this_size[0]}x{this_size[1]} but {first_name} is "
-                f"{size[0]}x{size[1]}: all calibration images must come from one camera mode"
-            )
-            raise CalibrationError(text)
+        size = this_size if size is None else size
         corners, reason = find_chessboard(gray, pattern)
         if corners is None:
             log.warning(f"{name}: {reason}; image skipped")
             rejected.append((name, reason))
             continue
-        names.append(name)
-        image_points.append(corners)
+        views.setdefault(this_size, []).append((name, corners))
+    if views:
+        size = max(views, key=lambda s: len(views[s]))  # ties: the size seen first
+        for other, others in views.items():
+            if other == size:
+                continue
+            for name, _ in others:
+                reason = (
+                    f"image is {other[0]}x{other[1]} but {len(views[size])} views are "
+                    f"{size[0]}x{size[1]}: one calibration is of one camera mode"
+                )
+                log.warning(f"{name}: {reason}; image skipped")
+                rejected.append((name, reason))
+    names = [name for name, _ in views.get(size or (0, 0), [])]
+    image_points = [corners for _, corners in views.get(size or (0, 0), [])]
     if size is None or len(image_points) < min_views:
         text = (
             f"only {len(image_points)} of {total} images show the full {pattern[0]}x{pattern[1]} "

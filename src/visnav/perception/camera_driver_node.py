@@ -26,13 +26,17 @@ for ``grey``/``mono8``), as usb_cam publishes them.
 the source's), ``camera_name`` (``camera``), ``camera_info_url``,
 ``rescale_camera_info`` (false) and ``capture_delay`` (0.0 s, subtracted from each
 stamp). Images are ``bgr8``, as cv_camera publishes them.
+
+A video file plays at the frame rate it was recorded at (``CAP_PROP_FPS``) unless
+``framerate`` / ``rate`` is given (then that rate): usb_cam cannot open files and
+cv_camera plays them at ``rate`` (30 by default), which turns a 10 fps clip into 30 Hz.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import cv2
@@ -87,6 +91,8 @@ class DriverSettings:
         rescale_camera_info: scale a calibration of another size to the images.
         capture_delay_ns: subtracted from each stamp (known capture latency).
         controls: OpenCV ``CAP_PROP_*`` -> value, set on a device.
+        rate_given: ``rate`` was set by the user; False lets a video file play at
+            its own frame rate (``rate`` is used when the file reports none).
     """
 
     source: CaptureSource
@@ -101,6 +107,17 @@ class DriverSettings:
     rescale_camera_info: bool = False
     capture_delay_ns: int = 0
     controls: dict[int, float] = field(default_factory=dict)
+    rate_given: bool = True
+
+
+def _overridden(node_kwargs: Mapping[str, object], name: str) -> bool:
+    """Whether the node's ``parameter_overrides`` (a mapping or Parameters) set ``name``."""
+    overrides = node_kwargs.get("parameter_overrides")
+    if isinstance(overrides, Mapping):
+        return name in overrides
+    if isinstance(overrides, Sequence):
+        return any(getattr(p, "name", None) == name for p in overrides)
+    return False
 
 
 def _positive_rate(value: float, name: str, node: str) -> float:
@@ -150,6 +167,10 @@ class CameraDriverNode(Node):
             fps=settings.rate,
             pixel_format=settings.pixel_format,
         )
+        fps = self.video.fps
+        if not settings.rate_given and settings.source.kind == "file" and fps > 0:
+            settings = replace(settings, rate=fps)  # the file's own frame rate
+            self.settings = settings
         try:
             self._setup(settings)
         except CameraDriverError:
@@ -295,6 +316,7 @@ class UsbCamNode(CameraDriverNode):
 
     def __init__(self, name: str = "usb_cam", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
+        self._rate_given = _overridden(node_kwargs, "framerate")
         self._start_or_destroy(self._settings)
 
     def _settings(self) -> DriverSettings:
@@ -335,6 +357,7 @@ class UsbCamNode(CameraDriverNode):
             camera_name=prm.camera_name,
             camera_info_url=prm.camera_info_url,
             controls=controls,
+            rate_given=self._rate_given,
         )
 
 
@@ -368,6 +391,7 @@ class CvCameraNode(CameraDriverNode):
 
     def __init__(self, name: str = "cv_camera", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
+        self._rate_given = _overridden(node_kwargs, "rate")
         self._start_or_destroy(self._settings)
 
     def _settings(self) -> DriverSettings:
@@ -392,4 +416,5 @@ class CvCameraNode(CameraDriverNode):
             camera_info_url=prm.camera_info_url,
             rescale_camera_info=prm.rescale_camera_info,
             capture_delay_ns=round(delay * 1e9),
+            rate_given=self._rate_given,
         )

@@ -18,6 +18,9 @@ What follows image_geometry exactly:
   or ``equidistant`` (OpenCV's fisheye) and some coefficient is non-zero;
   otherwise :meth:`rectify_image` returns a copy and :meth:`rectify_point`
   returns its input unchanged (even if ``R`` or ``P`` differ from identity / ``K``).
+* ``D`` goes to OpenCV as image_geometry hands it over: plumb_bob and rational_polynomial
+  take 4 (k3 = 0 added), 5, 8, 12 or 14 coefficients, read by length; an empty
+  ``distortion_model`` with a non-zero ``D`` too (image_geometry's Python model), warned once.
 * Rectification maps are fixed-point (``CV_16SC2``) at the binned full
   resolution, cropped to the ROI, rebuilt only when the calibration (or, for the
   crop, the ROI) changes. Float images are remapped with NaN outside the image.
@@ -30,9 +33,9 @@ Where visnav differs, on purpose:
 * Bad calibrations raise :class:`CameraModelError` in :meth:`from_camera_info`
   instead of yielding a model that divides by zero later: ``K`` all zero (an
   uncalibrated camera), ``P`` all zero (image_geometry does *not* fall back to
-  ``K``: its ``fx()`` would be 0), a non-zero ``D`` whose length does not fit the
-  model (plumb_bob 5, rational_polynomial 8, equidistant 4) or whose model is
-  unknown, an all-zero ``R`` with distortion to remove, an ROI outside the image.
+  ``K``: its ``fx()`` would be 0), a non-zero ``D`` of a length OpenCV does not
+  take (equidistant: 4) or of an unknown model name (a typo: the C++ model refuses
+  to rectify it), an all-zero ``R`` with distortion to remove, an ROI outside the image.
   An unknown model with no non-zero coefficient is accepted as distortion-free
   (image_geometry accepts it too but raises on every rectify call).
 * Points are computed in float64 (image_geometry rounds to float32 for
@@ -128,11 +131,16 @@ class PinholeCameraModel:
 
     ``from_camera_info`` raises :class:`CameraModelError` for a camera_info that
     cannot make a usable model (see the module docstring).
+
+    Args:
+        name: what the once-per-model warnings call this camera (e.g. "left camera").
     """
 
     from_camera_info = _FromCameraInfo()
 
-    def __init__(self) -> None:
+    def __init__(self, *, name: str = "camera") -> None:
+        self._name = name
+        self._assumed: set[str] = set()
         self._calib: Calibration | None = None
         self._roi = RoiState(0, 0, 0, 0, False)
         self._info: CameraInfo | None = None
@@ -152,7 +160,9 @@ class PinholeCameraModel:
 
     def _update(self, info: CameraInfo) -> bool:
         """Set the camera from a CameraInfo; return whether calibration or ROI changed."""
-        calib, roi = parse_camera_info(info)
+        parsed = parse_camera_info(info)
+        calib, roi = parsed.calibration, parsed.roi
+        parsed.warn_once(self._assumed, camera=self._name, frame=str(info.header.frame_id))
         full_dirty = calib != self._calib
         reduced_dirty = full_dirty or roi != self._roi
         self._info = info
@@ -228,7 +238,7 @@ class PinholeCameraModel:
 
     @property
     def distortion_model(self) -> str:
-        """The camera_info's ``distortion_model`` string."""
+        """The distortion model applied: the camera_info's, or the one read from ``D``."""
         return self._calibration().distortion_model
 
     @property
@@ -277,7 +287,7 @@ class PinholeCameraModel:
 
     @property
     def D(self) -> NDArray[np.float64]:  # noqa: N802 - image_geometry's name
-        """Distortion coefficients as given (read-only; may be empty)."""
+        """Distortion coefficients as applied (read-only; may be empty; 4 padded to 5)."""
         self._calibration()
         return self._d
 

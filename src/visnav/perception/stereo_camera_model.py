@@ -44,6 +44,10 @@ Where visnav differs, on purpose:
   :meth:`get_z` returns inf there and :meth:`get_disparity` of ``z = 0`` inf, as
   both do.
 * The point methods accept (2,)/(N, 2) and (3,)/(N, 3) arrays.
+
+Each camera_info is read as :class:`~visnav.perception.PinholeCameraModel` reads it:
+an empty ``distortion_model`` with a non-zero ``D`` and 4, 8, 12 or 14 coefficients are
+accepted as image_geometry and OpenCV accept them (one warning per camera and kind).
 """
 
 from __future__ import annotations
@@ -126,8 +130,8 @@ class StereoCameraModel:
     from_camera_info = _FromCameraInfo()
 
     def __init__(self) -> None:
-        self.left = PinholeCameraModel()
-        self.right = PinholeCameraModel()
+        self.left = PinholeCameraModel(name="left camera")
+        self.right = PinholeCameraModel(name="right camera")
         self._q: NDArray[np.float64] | None = None
 
     def _update(self, left: CameraInfo, right: CameraInfo) -> bool:

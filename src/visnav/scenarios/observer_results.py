@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from visnav.scenarios.observer_metrics import (
+    FloatArray,
     interpolate_poses,
     path_length,
     pose_error,
@@ -136,12 +137,17 @@ def drone_results(node: ObserverNode) -> dict[str, Any]:
     }
 
 
+def _tracked_poses(node: ObserverNode) -> list[tuple[int, FloatArray]]:
+    """``(stamp ns, pose)`` of every tracked frame: the last ``slam/path`` + later poses."""
+    last = node._slam_path[-1][0] if node._slam_path else -1
+    return list(node._slam_path) + [sp for sp in node._slam_poses if sp[0] > last]
+
+
 def slam_trajectories(node: ObserverNode) -> SlamTrajectories:
     """``(estimate, ground truth at its stamps, poses tracked)`` from the SLAM topics."""
     from visnav.slam.trajectory import Trajectory  # noqa: PLC0415
 
-    last = node._slam_path[-1][0] if node._slam_path else -1
-    poses = list(node._slam_path) + [sp for sp in node._slam_poses if sp[0] > last]
+    poses = _tracked_poses(node)
     if not poses or len(node._truth_ns) < 2:
         return Trajectory.empty(), Trajectory.empty(), len(poses)
     stamps = np.array([s for s, _ in poses], dtype=np.int64)
@@ -159,17 +165,28 @@ def _slam(node: ObserverNode, trajectories: SlamTrajectories) -> dict[str, Any]:
     out: dict[str, Any] = slam_metrics(est, gt)
     out.update({"tracked": tracked, "evaluated": len(est)})
     for key in _SLAM_COUNTERS:
-        text = node._slam_counters.get(key)
-        if text is None:
-            continue
-        try:
-            value = float(text)
-        except ValueError:
-            continue
-        if not math.isfinite(value):
-            continue
-        out[key] = int(value) if value.is_integer() and key != "cpu_s" else round(value, 2)
+        value = _counter(node, key)
+        if value is not None:
+            out[key] = int(value) if value.is_integer() and key != "cpu_s" else round(value, 2)
+    # The counters are as of the SLAM node's last status (every diagnostic_period s): the
+    # frames it tracked after the last frame they include are frames too, so that
+    # ``tracked <= frames`` (frames lost after that status are not known).
+    counted_upto = _counter(node, "last_frame_stamp_ns")
+    if "frames" in out and counted_upto is not None:
+        out["frames"] += sum(1 for stamp, _ in _tracked_poses(node) if stamp > counted_upto)
     return out
+
+
+def _counter(node: ObserverNode, key: str) -> float | None:
+    """The SLAM status value ``key`` as a finite number (None: absent or not a number)."""
+    text = node._slam_counters.get(key)
+    if text is None:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
 
 
 _SLAM_COUNTERS = (

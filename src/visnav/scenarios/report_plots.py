@@ -43,6 +43,25 @@ def _figure(width_in: float, height_in: float) -> Any:
     return Figure(figsize=(width_in, height_in), dpi=_DPI)
 
 
+def _fit_title(fig: Any, ax: Any, text: str, **kwargs: Any) -> None:
+    """Set the axes' title and lay the figure out, the title wrapped until it fits.
+
+    A title is centred over its axes, which the y label pushes right: on a narrow figure
+    (one setting) a one-line title ran past the right edge and was cut.
+    """
+    per_line = len(text)
+    for _ in range(4):
+        ax.set_title(textwrap.fill(text, per_line, break_long_words=False), **kwargs)
+        fig.tight_layout()
+        box = ax.title.get_window_extent()
+        centre = (box.x0 + box.x1) / 2
+        room = 2 * min(centre, fig.bbox.width - centre) - 4  # px a centred line may span
+        if box.width <= room:
+            return
+        longest = max(len(line) for line in ax.get_title().splitlines())
+        per_line = max(8, min(per_line - 1, math.floor(longest * room / box.width)))
+
+
 def _png(fig: Any) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=_DPI)
@@ -68,8 +87,7 @@ def success_png(
     ax.set_xticks(x, [textwrap.fill(lbl, 18) for lbl in labels], fontsize=8)
     ax.set_ylim(0, 105)
     ax.set_ylabel("successful runs (%)")
-    ax.set_title("success per setting (95 % Wilson interval)")
-    fig.tight_layout()
+    _fit_title(fig, ax, "success per setting (95 % Wilson interval)")
     return _png(fig)
 
 
@@ -88,8 +106,7 @@ def distribution_png(
         np.arange(1, len(labels) + 1), [textwrap.fill(lb, 18) for lb in labels], fontsize=8
     )
     ax.set_ylabel(unit)
-    ax.set_title(title)
-    fig.tight_layout()
+    _fit_title(fig, ax, title)
     return _png(fig)
 
 

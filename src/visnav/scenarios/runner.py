@@ -18,7 +18,9 @@ same nodes the same way (without the bag and the topic counts).
 count, rate_hz}}), plus the observer's task keys (``goals_total``, ``goals_reached``,
 ``collisions``, ``path_length_m``, ``shortest_path_m``, ``path_ratio``,
 ``goal_times_s``, ``odometry``, ``odometry_drift_m``, ``localization``, ``slam`` for the
-car; ``min_clearance_m``, ``mean_speed_mps``, ``planning_time_ms`` for the drone). The
+car; ``min_clearance_m``, ``mean_speed_mps``, ``planning_time_ms`` for the drone; how
+each is measured, ``path_ratio`` and the ``slam`` counts included, is in
+:mod:`visnav.scenarios.observer`). The
 observer writes its files there too (the car's ``map.yaml`` / ``map.pgm`` and SLAM
 ``slam_trajectory.tum``, ``ground_truth.tum``). A launch file given as the scenario gets
 ``launch_file`` (its path) as well.

@@ -108,8 +108,21 @@ def flatten(value: Any, prefix: str = "") -> dict[str, Any]:
     return out
 
 
+def _column_group(name: str) -> int:
+    """Where a summary column goes: the settings, then the results, the topics last."""
+    if name.startswith("set."):
+        return 0
+    return 2 if name.startswith(("topics.", "bag", "launch_file")) else 1
+
+
 def write_csv(sweep_dir: Path, state: dict[str, Any]) -> Path:
-    """Write ``DIR/sweep.csv``: one row per run, run columns then every summary field."""
+    """Write ``DIR/sweep.csv``: one row per run, every summary field flattened.
+
+    Columns: the run's (``setting``, ``seed``, ``status``, ``reason``, ``wall_s``,
+    ``node``, ``dir``), its settings (``set.*``), the results in summary order (goals,
+    collisions, path, localization, SLAM, ...) and last the bag path and the per-topic
+    counts (``topics.<name>.type|count|rate_hz``, some 60 columns for the car).
+    """
     base = ["setting", "seed", "status", "reason", "wall_s", "node", "dir"]
     rows: list[dict[str, Any]] = []
     extra: dict[str, None] = {}
@@ -122,7 +135,8 @@ def write_csv(sweep_dir: Path, state: dict[str, Any]) -> Path:
     path = sweep_dir / CSV_NAME
     tmp = path.with_name(f".{path.name}.tmp")
     with tmp.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=base + list(extra), restval="")
+        columns = base + sorted(extra, key=_column_group)  # stable: summary order within
+        writer = csv.DictWriter(f, fieldnames=columns, restval="")
         writer.writeheader()
         writer.writerows(rows)
     tmp.replace(path)
