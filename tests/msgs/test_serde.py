@@ -264,3 +264,15 @@ def test_reused_serializer_equals_fresh_serialization(batches: list[list[str]]) 
     for values in batches:
         msg = _diagnostics(values)
         assert bytes(cdr.serialize(msg)) == serialize(msg)
+
+
+def test_declared_defaults_as_rclpy_gives_them() -> None:
+    from visnav.msgs import Pose, Quaternion
+    from visnav.msgs.construct import default_message, make, message_from_dict
+
+    # geometry_msgs/Quaternion.msg declares w = 1: rclpy's Quaternion() is the identity
+    assert make(Quaternion).w == 1.0
+    assert make(Pose).orientation.w == 1.0
+    assert default_message("geometry_msgs/msg/PoseStamped").pose.orientation.w == 1.0
+    given = message_from_dict("geometry_msgs/msg/Pose", {"orientation": {"z": 1.0, "w": 0.0}})
+    assert (given.orientation.z, given.orientation.w) == (1.0, 0.0)

@@ -53,6 +53,14 @@ def message_fields(type_name: str) -> list[tuple[str, Any]]:
     return list(typestore().fielddefs[type_name][1])
 
 
+# Field defaults that ROS 2 message definitions declare (``float64 w 1`` in
+# geometry_msgs/Quaternion.msg): the rosbags type store keeps types, not default values, and
+# rclpy's ``Quaternion()`` is the identity rotation.
+_DECLARED_DEFAULTS: dict[str, dict[str, Any]] = {
+    "geometry_msgs/msg/Quaternion": {"w": 1.0},
+}
+
+
 def _base_default(base: str) -> Any:
     if base in {"string", "wstring"}:
         return ""
@@ -85,7 +93,9 @@ def default_message(type_name: str) -> Any:
         UnknownMessageTypeError: no such type.
     """
     cls = get_message_class(type_name)
-    return cls(**{name: _default_for(desc) for name, desc in message_fields(type_name)})
+    values = {name: _default_for(desc) for name, desc in message_fields(type_name)}
+    values.update(_DECLARED_DEFAULTS.get(type_name, {}))
+    return cls(**values)
 
 
 def make(msg_type: type[MsgT], **fields: Any) -> MsgT:
@@ -99,6 +109,7 @@ def make(msg_type: type[MsgT], **fields: Any) -> MsgT:
     """
     type_name = msg_type_name(msg_type)
     defaults = {name: _default_for(desc) for name, desc in message_fields(type_name)}
+    defaults.update(_DECLARED_DEFAULTS.get(type_name, {}))
     unknown = [k for k in fields if k not in defaults]
     if unknown:
         close = difflib.get_close_matches(unknown[0], list(defaults), n=3)
