@@ -97,6 +97,8 @@ def test_bytes_equal_genpys() -> None:
         "b = io.BytesIO(); r.serialize(b); print(b.getvalue().hex())\n"
         "f = m.MoveBaseActionFeedback(); f.status = r.status\n"
         "f.feedback.base_position.pose.position.x = 2.5\n"
+        # ROS 2's Quaternion defaults to w = 1 (visnav's default message), genpy's to 0
+        "f.feedback.base_position.pose.orientation.w = 1.0\n"
         "b = io.BytesIO(); f.serialize(b); print(b.getvalue().hex())\n"
         "g = m.MoveBaseActionGoal(); g.goal_id.id = 'x'\n"
         "g.goal.target_pose.header.frame_id = 'map'\n"

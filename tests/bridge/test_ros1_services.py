@@ -152,6 +152,8 @@ def test_bytes_and_md5_equal_genpys() -> None:
         "import io, sys, nav_msgs.srv as n, std_srvs.srv as s\n"
         "r = n.GetPlanRequest(); r.goal.header.frame_id = 'map'; r.goal.pose.position.x = 1.5\n"
         "r.start.header.stamp.secs = 7; r.tolerance = 0.5\n"
+        # ROS 2's Quaternion defaults to w = 1 (visnav's default message), genpy's to 0
+        "r.goal.pose.orientation.w = 1.0; r.start.pose.orientation.w = 1.0\n"
         "b = io.BytesIO(); r.serialize(b); print(b.getvalue().hex())\n"
         "for c in (s.SetBool, s.Trigger, s.Empty, n.GetPlan, n.GetMap, n.SetMap, n.LoadMap):\n"
         "    print(c._type, c._md5sum)\n"

@@ -164,3 +164,20 @@ def test_fuzz_only_description_errors_escape(
     assert verts.ndim == 2
     assert verts.shape[1] == 3
     assert np.isfinite(verts).all()
+
+
+def test_collada_with_raw_angle_brackets_in_attributes_loads_as_gazebo_reads_it() -> None:
+    # velodyne_simulator's meshes carry id="<STL_BINARY>": not XML, but TinyXML takes it
+    from pathlib import Path
+
+    from visnav.description.mesh_files import load_mesh
+
+    path = (
+        Path(__file__).resolve().parents[1]
+        / "data/velodyne_simulator/velodyne_description/meshes/VLP16_base_1.dae"
+    )
+    assert b'id="<STL_BINARY>"' in path.read_bytes()
+    mesh = load_mesh(path)
+    low, high = mesh.bounds
+    assert 0.10 < high[1] - low[1] < 0.11  # the VLP-16's base, 103.6 mm across (in metres)
+    assert any("&lt;" in note for note in mesh.warnings)

@@ -201,3 +201,24 @@ def test_state_publishers_are_left_out_when_the_sim_has_the_robot(tmp_path: Path
     notes = " | ".join(desc.notes)
     assert "joint_state_publisher /jsp" in notes
     assert "robot_state_publisher /rsp" in notes
+
+
+def test_spawned_plugins_get_the_spawners_namespace_as_gazebo_ros_adds_it() -> None:
+    from visnav.launch.ros_gazebo import add_plugin_namespaces
+
+    urdf = """<robot name="r"><link name="a"/>
+      <gazebo><plugin name="c" filename="libgazebo_ros_control.so"/></gazebo>
+      <gazebo reference="a"><sensor type="ray" name="s">
+        <plugin name="l" filename="libgazebo_ros_laser.so"><topicName>scan</topicName></plugin>
+      </sensor></gazebo>
+      <gazebo><plugin name="k" filename="libgazebo_ros_diff_drive.so">
+        <robotNamespace>/mine</robotNamespace></plugin></gazebo>
+      <gazebo><plugin name="n" filename="libgazebo_ros_diff_drive.so"><ros/></plugin></gazebo>
+      <gazebo><plugin name="q" filename="libvisnav_quadrotor.so"/></gazebo>
+    </robot>"""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(add_plugin_namespaces(urdf, "/"))
+    got = {p.get("name"): p.findtext("robotNamespace") for p in root.iter("plugin")}
+    assert got == {"c": "/", "l": "/", "k": "/mine", "n": None, "q": None}
+    assert add_plugin_namespaces("<robot", "/") == "<robot"  # not XML: left to the simulator

@@ -23,7 +23,9 @@ and what is wrong.
 
 from __future__ import annotations
 
+import io
 import os
+import re
 import struct
 import warnings
 from dataclasses import dataclass
@@ -211,12 +213,41 @@ def _collada(path: Path, name: str, notes: list[str]) -> list[MeshPart]:
         raise _error(name, f"not a readable Collada file ({type(exc).__name__}: {exc})") from None
 
 
+_ATTRIBUTE = re.compile(rb'="([^"]*)"')
+
+
+def _escape_attribute(match: re.Match[bytes]) -> bytes:
+    return b'="' + match[1].replace(b"<", b"&lt;").replace(b">", b"&gt;") + b'"'
+
+
+def _open_collada(collada: Any, common: Any, path: Path, name: str, notes: list[str]) -> Any:
+    """The parsed Collada document, read as leniently as Gazebo reads it.
+
+    A raw ``<`` or ``>`` in an attribute value (STL converters write ``id="<STL_BINARY>"``),
+    which Gazebo's TinyXML accepts, is escaped, with one note.
+    """
+    ignore = [common.DaeUnsupportedError, common.DaeBrokenRefError]
+    try:
+        return collada.Collada(str(path), ignore=ignore)
+    except common.DaeMalformedError as exc:
+        if "XML Parsing Error" not in str(exc):
+            raise
+        data = path.read_bytes()
+        repaired = _ATTRIBUTE.sub(_escape_attribute, data)
+        if repaired == data:
+            raise
+        document = collada.Collada(io.BytesIO(repaired), ignore=ignore)
+        notes.append(
+            f"mesh {name!r}: '<' or '>' inside attribute values is not XML; read as Gazebo's "
+            "parser reads it (fix the file: write &lt; and &gt;)"
+        )
+        return document
+
+
 def _collada_parts(
     collada: Any, common: Any, path: Path, name: str, notes: list[str]
 ) -> list[MeshPart]:
-    document = collada.Collada(
-        str(path), ignore=[common.DaeUnsupportedError, common.DaeBrokenRefError]
-    )
+    document = _open_collada(collada, common, path, name, notes)
     meter = float(document.assetInfo.unitmeter or 1.0)
     scene = document.scene
     if scene is None:

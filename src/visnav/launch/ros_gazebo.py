@@ -16,12 +16,18 @@ roslaunch                                      visnav
 =============================================  ============================================
 
 Gazebo spawns robots into a running world; visnav's simulator composes the MuJoCo model
-once, so :func:`fold_spawns` gives the spawned robot to the ``sim`` node.
+once, so :func:`fold_spawns` gives the spawned robot to the ``sim`` node. As gazebo_ros's
+spawn service does, every ROS 1 ``<plugin>`` of the spawned URDF without a
+``<robotNamespace>`` gets the spawner's namespace (``spawn_model``'s ``-robot_namespace``
+defaults to its node's namespace, ``/``), so a plugin's default namespace is the spawner's,
+not the model's name (a ``gazebo_ros_control`` without ``<robotNamespace>`` serves its
+controllers in ``/``).
 """
 
 from __future__ import annotations
 
 import difflib
+import xml.etree.ElementTree as ET
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -39,6 +45,7 @@ if TYPE_CHECKING:
 __all__ = [
     "EMPTY_WORLD_ARGS",
     "GAZEBO_TRANSLATORS",
+    "add_plugin_namespaces",
     "empty_world_node",
     "fold_spawns",
 ]
@@ -281,6 +288,28 @@ def empty_world_node(
     return spec, issues, notes
 
 
+def add_plugin_namespaces(urdf: str, namespace: str) -> str:
+    """``urdf`` with ``<robotNamespace>namespace</robotNamespace>`` in each ROS 1 plugin lacking it.
+
+    gazebo_ros_api_plugin's ``walkChildAddRobotNamespace``, which the spawn service applies to
+    the spawned model: ROS 2 plugins (with a ``<ros>`` block) and visnav's own plugins keep
+    their XML. Text that does not parse is returned as it is (the simulator then reports it).
+    """
+    try:
+        root = ET.fromstring(urdf)  # noqa: S314 - the launch file's robot description
+    except ET.ParseError:
+        return urdf
+    changed = False
+    for plugin in root.iter("plugin"):
+        filename = plugin.get("filename") or ""
+        if filename.startswith("libvisnav_") or plugin.find("ros") is not None:
+            continue
+        if plugin.find("robotNamespace") is None:
+            ET.SubElement(plugin, "robotNamespace").text = namespace
+            changed = True
+    return ET.tostring(root, encoding="unicode") if changed else urdf
+
+
 def fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
     """Give spawn_model's robot to the sim node (visnav builds the world and robot together).
 
@@ -336,6 +365,8 @@ def fold_spawns(nodes: list[NodeSpec], notes: list[str]) -> list[NodeSpec]:
     ]
     if p.get("robot_namespace"):
         params["robot_namespace"] = str(p["robot_namespace"])
+    else:
+        params["robot"] = add_plugin_namespaces(params["robot"], spawn.namespace)
     if p.get("packages") and "packages" not in params:
         params["packages"] = list(p["packages"])
     ignored = [f"-{axis} {p[axis]}" for axis in ("R", "P") if float(p.get(axis, 0.0)) != 0.0]

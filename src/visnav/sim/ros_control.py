@@ -370,8 +370,13 @@ class RobotHWSim:
             target = np.clip(command[v], -self._velocity_limit[v], self._velocity_limit[v])
             self._servo.apply(data, target.tolist())
         if self._effort.any():
-            e = self._effort
-            data.qfrc_applied[dof[e]] = np.clip(command, -self._effort_limit, self._effort_limit)[e]
+            # Gazebo adds an effort joint's command to the joint's force (SetForce), so an
+            # effort joint no controller drives leaves other plugins' forces alone (the
+            # ROSbot's skid steer drives its four effort-interface wheels)
+            e = self._effort & np.array([name in self.claimed for name in self.names], dtype=bool)
+            if e.any():
+                limit = self._effort_limit
+                data.qfrc_applied[dof[e]] = np.clip(command, -limit, limit)[e]
 
 
 # --------------------------------------------------------------------------- manager
