@@ -280,6 +280,11 @@ def test_a_visnav_status_topic_of_the_same_name_stays_out(graphs: _Graphs) -> No
     graphs.connect_client()
     graphs.send_goal("goal-2", 1.0)
     assert graphs.spin_until(lambda: graphs.results("goal-2") != [])
+    def seen_goal() -> bool:
+        return any(s.goal_id.id == "goal-2" for m in graphs.got["status"] for s in m.status_list)
+
+    # actionlib's status comes at 5 Hz over the peer's new connection: wait for one with the goal
+    assert graphs.spin_until(seen_goal)
     graphs.ctx.spin(duration_s=0.5)
     assert "/move_base/status" not in graphs.bridge.out_topics()
     assert "/move_base/status" not in graphs.bridge.in_topics()
