@@ -1,10 +1,11 @@
-"""ROBOTIS' TurtleBot3 (noetic packages as written) in turtlebot3_world, checked against Gazebo.
+"""ROBOTIS' TurtleBot3 (noetic packages as written) in turtlebot3_world and turtlebot3_house.
 
-The robots, worlds and launch files are the fixtures in ``tests/data/turtlebot3``. The laser's
-true ranges come from an oracle that shares nothing with the simulator: the world's collision
-geometry rebuilt here from ``model.sdf`` (cylinders, and the Collada meshes in Gazebo's units:
-``<unit meter>`` times the SDF ``<scale>``, at the SDF poses) and intersected with trimesh's
-ray-triangle tests.
+The robots, worlds and launch files are the fixtures in ``tests/data/turtlebot3`` (the house's
+database models in ``tests/data/gazebo_models``). The laser's true ranges come from an oracle
+that shares nothing with the simulator: each world's collision geometry rebuilt here from its
+``model.sdf`` (boxes, cylinders, and the Collada meshes in Gazebo's units: ``<unit meter>``
+times the SDF ``<scale>``; nested model, link and collision poses composed) and intersected
+with trimesh's ray-triangle tests.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ DESCRIPTION = DATA / "turtlebot3_description"
 GAZEBO = DATA / "turtlebot3_gazebo"
 WORLD = GAZEBO / "worlds" / "turtlebot3_world.world"
 MODEL_SDF = GAZEBO / "models" / "turtlebot3_world" / "model.sdf"
+HOUSE_SDF = GAZEBO / "models" / "turtlebot3_house" / "model.sdf"
+GAZEBO_MODELS = DATA.parent / "gazebo_models"  # Gazebo's database models the house includes
 LDS_SIGMA = 0.01  # <noise><stddev> of the burger's lds_lfcd_sensor
 
 
@@ -80,6 +83,53 @@ def world_collision_mesh() -> trimesh.Trimesh:
     return trimesh.util.concatenate(parts)
 
 
+def _mesh_file(uri: str) -> Path:
+    name = uri.removeprefix("model://").lstrip("/")
+    for root in (GAZEBO / "models", GAZEBO_MODELS):
+        if (root / name).is_file():
+            return root / name
+    raise FileNotFoundError(uri)
+
+
+def _collision_part(geometry: ET.Element) -> trimesh.Trimesh | None:
+    box, cylinder, mesh = geometry.find("box"), geometry.find("cylinder"), geometry.find("mesh")
+    if box is not None:
+        return trimesh.creation.box(extents=[float(v) for v in box.findtext("size", "").split()])
+    if cylinder is not None:
+        return trimesh.creation.cylinder(
+            radius=float(cylinder.findtext("radius") or 0),
+            height=float(cylinder.findtext("length") or 0),
+            sections=128,
+        )
+    if mesh is None:
+        return None
+    path = _mesh_file(mesh.findtext("uri") or "")
+    found = re.search(r'<unit[^>]*meter="([0-9.eE+-]+)"', path.read_text(errors="replace"))
+    unit = float(found[1]) if found else 1.0
+    scale = np.array([float(v) for v in (mesh.findtext("scale") or "1 1 1").split()])
+    part = trimesh.load(path, force="mesh")
+    part.vertices = part.vertices * unit * scale
+    return part
+
+
+def sdf_collision_mesh(model: ET.Element, t_parent: np.ndarray) -> list[trimesh.Trimesh]:
+    """Every collision of ``model`` (nested models, links, collisions; poses composed)."""
+    t_model = t_parent @ _pose(model)
+    parts = []
+    for child in model:
+        if child.tag == "model":
+            parts += sdf_collision_mesh(child, t_model)
+        elif child.tag == "link":
+            t_link = t_model @ _pose(child)
+            for collision in child.findall("collision"):
+                geometry = collision.find("geometry")
+                part = None if geometry is None else _collision_part(geometry)
+                if part is not None:
+                    part.apply_transform(t_link @ _pose(collision))
+                    parts.append(part)
+    return parts
+
+
 def true_ranges(mesh: trimesh.Trimesh, origin: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Distance to the first surface along horizontal beams from ``origin`` (inf: none)."""
     n = len(angles)
@@ -106,7 +156,7 @@ class Recorder:
 @pytest.fixture
 def ctx(mujoco_gl: str, monkeypatch: pytest.MonkeyPatch) -> Iterator[Context]:
     del mujoco_gl
-    monkeypatch.setenv("GAZEBO_MODEL_PATH", str(GAZEBO / "models"))
+    monkeypatch.setenv("GAZEBO_MODEL_PATH", f"{GAZEBO / 'models'}:{GAZEBO_MODELS}")
     with Context(transport="local") as context:
         yield context
 
@@ -119,14 +169,37 @@ def spawn(model: str, x: float = -2.0, y: float = -0.5, yaw: float = 0.0) -> Rob
     )
 
 
+def house_collision_mesh() -> trimesh.Trimesh:
+    """turtlebot3_house's collision geometry (boxes, cylinders, the database models' meshes)."""
+    root = ET.parse(HOUSE_SDF).getroot()
+    model = root.find("model")
+    assert model is not None
+    return trimesh.util.concatenate(sdf_collision_mesh(model, np.eye(4)))
+
+
+WORLD_ORACLES: dict[str, Callable[[], trimesh.Trimesh]] = {
+    "turtlebot3_world": world_collision_mesh,
+    "turtlebot3_house": house_collision_mesh,
+}
+
+
 @pytest.mark.parametrize(
-    ("x", "y", "yaw"), [(-2.0, -0.5, 0.0), (0.5, 0.55, 1.2), (1.6, -1.0, -2.5)]
+    ("world", "x", "y", "yaw"),
+    [
+        ("turtlebot3_world", -2.0, -0.5, 0.0),
+        ("turtlebot3_world", 0.5, 0.55, 1.2),
+        ("turtlebot3_world", 1.6, -1.0, -2.5),
+        ("turtlebot3_house", -3.0, 1.0, 0.0),
+        ("turtlebot3_house", 2.5, -2.0, 1.0),
+        ("turtlebot3_house", -1.5, 3.5, -2.0),
+    ],
 )
 def test_burger_scan_matches_the_worlds_walls_and_pillars(
-    ctx: Context, x: float, y: float, yaw: float
+    ctx: Context, world: str, x: float, y: float, yaw: float
 ) -> None:
     rec = Recorder(ctx, {"/scan": LaserScan})
-    with Simulator(WORLD, [spawn("burger", x, y, yaw)], context=ctx) as sim:
+    world_file = GAZEBO / "worlds" / f"{world}.world"
+    with Simulator(world_file, [spawn("burger", x, y, yaw)], context=ctx) as sim:
         sim.run(1.25)
         body = sim.model.body(f"{sim.robot().name}/base_scan")
         origin = np.array(sim.data.xpos[body.id])
@@ -142,7 +215,7 @@ def test_burger_scan_matches_the_worlds_walls_and_pillars(
     assert scan.angle_increment == pytest.approx(6.28319 / 359, rel=1e-6)
     sensor_yaw = math.atan2(rot[1, 0], rot[0, 0])
     angles = sensor_yaw + scan.angle_min + np.arange(360) * scan.angle_increment
-    truth = true_ranges(world_collision_mesh(), origin, angles)
+    truth = true_ranges(WORLD_ORACLES[world](), origin, angles)
     ranges = np.asarray(scan.ranges, dtype=float)
     hits = (truth > 0.12 + 3 * LDS_SIGMA) & (truth < 3.5 - 3 * LDS_SIGMA)
     assert hits.sum() >= 40, f"too few beams hit anything from ({x}, {y})"
