@@ -280,13 +280,16 @@ def test_waffle_pi_camera_at_its_plugin_rate_with_gazebo_ros_names(ctx: Context)
 
 @pytest.mark.slow
 @pytest.mark.ci
-@pytest.mark.parametrize("launch", ["turtlebot3_world.launch", "turtlebot3_house.launch"])
-def test_turtlebot3_gazebo_launch_files_as_written(domain: int, launch: str) -> None:
+@pytest.mark.parametrize(
+    ("launch", "model"),
+    [("turtlebot3_world.launch", "burger"), ("turtlebot3_house.launch", "waffle_pi")],
+)
+def test_turtlebot3_gazebo_launch_files_as_written(domain: int, launch: str, model: str) -> None:
     env = {
         **os.environ,
         "VISNAV_DOMAIN": str(domain),
-        "TURTLEBOT3_MODEL": "burger",
-        "GAZEBO_MODEL_PATH": str(DATA.parent / "gazebo_models"),
+        "TURTLEBOT3_MODEL": model,
+        "GAZEBO_MODEL_PATH": str(GAZEBO_MODELS),
     }
     cmd = [
         sys.executable, "-m", "visnav.cli.main", "launch", str(GAZEBO / "launch" / launch),
@@ -294,9 +297,12 @@ def test_turtlebot3_gazebo_launch_files_as_written(domain: int, launch: str) -> 
         "--package", f"turtlebot3_gazebo={GAZEBO}",
     ]  # fmt: skip
     proc = subprocess.Popen(cmd, env=env, text=True, stderr=subprocess.PIPE)
+    topics: dict[str, type[Any]] = {"/scan": LaserScan, "/odom": Odometry}
+    if model == "waffle_pi":
+        topics["/camera/rgb/image_raw"] = Image
     try:
         with Context(domain) as ctx:
-            rec = Recorder(ctx, {"/scan": LaserScan, "/odom": Odometry})
+            rec = Recorder(ctx, topics)
             ok = ctx.spin_until(lambda: len(rec.messages["/scan"]) >= 6, 180.0)
             assert ok, f"no /scan from {launch}: {proc.poll()}"
         scans = rec.messages["/scan"]
@@ -305,6 +311,12 @@ def test_turtlebot3_gazebo_launch_files_as_written(domain: int, launch: str) -> 
         ranges = np.asarray(scans[-1].ranges)
         assert len(ranges) == 360
         assert np.isfinite(ranges).sum() > 60, "the world's obstacles are not in the scan"
+        if model == "waffle_pi":
+            images = rec.messages["/camera/rgb/image_raw"]
+            assert len(images) >= 20
+            assert images[-1].header.frame_id == "camera_rgb_optical_frame"
+            stamps = [stamp_s(m) for m in images]
+            assert (stamps[-1] - stamps[0]) / (len(stamps) - 1) == pytest.approx(1 / 30, rel=0.02)
     finally:
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
