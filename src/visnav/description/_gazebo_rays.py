@@ -153,24 +153,12 @@ def parse_ray(reader: SdfReader, sensor: ET.Element, link: str, robot_name: str)
         "name": name, "link": link, "pose": reader.pose(sensor, owner=owner), "kind": kind,
         "update_rate": update_rate, "frame_id": link, **fields,
     }  # fmt: skip
-    plugins = sensor.findall("plugin")
-    ours = [p for p in plugins if (p.get("filename") or "") in _PLUGINS]
-    for extra in plugins:
-        if extra not in ours:
-            reader.warn(
-                extra, f"{owner}plugin {extra.get('filename')!r} is not supported and is ignored"
-            )
-    if len(ours) > 1:
-        reader.warn(ours[1], f"{owner}only the first ray plugin is used")
-    if not ours:
-        reader.warn(
-            sensor,
-            f"{owner}no gazebo_ros ray plugin: like Gazebo, nothing is published on ROS "
-            'topics (add <plugin filename="libgazebo_ros_laser.so"> or '
-            "libgazebo_ros_ray_sensor.so)",
-        )
+    plugin = reader.sensor_plugin(
+        sensor, _PLUGINS, owner=owner, what="ray",
+        add='<plugin filename="libgazebo_ros_laser.so"> or libgazebo_ros_ray_sensor.so',
+    )  # fmt: skip
+    if plugin is None:
         return RaySpec(**spec)  # type: ignore[arg-type]
-    plugin = ours[0]
     filename = plugin.get("filename") or ""
     spec["plugin"] = filename
     spec["plugin_name"] = plugin.get("name") or ""

@@ -158,27 +158,13 @@ def parse_camera(
     }  # fmt: skip
     focal = width / (2.0 * math.tan(hfov / 2.0))
     cx, cy = default_principal_point(width, height)
-    plugins = sensor.findall("plugin")
-    ours = [
-        p for p in plugins if (p.get("filename") or "") in _CAMERA_PLUGINS + _DEPTH_PLUGINS_ROS1
-    ]
-    for extra in plugins:
-        if extra not in ours:
-            reader.warn(
-                extra, f"{owner}plugin {extra.get('filename')!r} is not supported and is ignored"
-            )
-    if len(ours) > 1:
-        reader.warn(ours[1], f"{owner}only the first camera plugin is used")
-    if not ours:
-        reader.warn(
-            sensor,
-            f"{owner}no gazebo_ros camera plugin: like Gazebo, nothing is "
-            'published on ROS topics (add <plugin filename="libgazebo_ros_'
-            'camera.so">)',
-        )
+    plugin = reader.sensor_plugin(
+        sensor, _CAMERA_PLUGINS + _DEPTH_PLUGINS_ROS1, owner=owner, what="camera",
+        add='<plugin filename="libgazebo_ros_camera.so">',
+    )  # fmt: skip
+    if plugin is None:
         spec.update(fx=focal, fy=focal, cx=cx, cy=cy)
         return CameraSpec(**spec)  # type: ignore[arg-type]
-    plugin = ours[0]
     filename = plugin.get("filename") or ""
     spec["plugin"] = filename
     spec["plugin_name"] = plugin.get("name") or ""
@@ -391,21 +377,12 @@ def parse_imu(reader: SdfReader, sensor: ET.Element, link: str, robot_name: str)
         "update_rate": update_rate, "frame_id": link,
         "angular_velocity_noise": tuple(gyro), "linear_acceleration_noise": tuple(accel),
     }  # fmt: skip
-    plugins = sensor.findall("plugin")
-    ours = [p for p in plugins if (p.get("filename") or "") in _IMU_PLUGINS]
-    for extra in plugins:
-        if extra not in ours:
-            reader.warn(
-                extra, f"{owner}plugin {extra.get('filename')!r} is not supported and is ignored"
-            )
-    if not ours:
-        reader.warn(
-            sensor,
-            f"{owner}no gazebo_ros IMU plugin: like Gazebo, nothing is published "
-            'on ROS topics (add <plugin filename="libgazebo_ros_imu_sensor.so">)',
-        )
+    plugin = reader.sensor_plugin(
+        sensor, _IMU_PLUGINS, owner=owner, what="IMU",
+        add='<plugin filename="libgazebo_ros_imu_sensor.so">',
+    )  # fmt: skip
+    if plugin is None:
         return ImuSpec(**spec)  # type: ignore[arg-type]
-    plugin = ours[0]
     spec["plugin"] = plugin.get("filename")
     spec["plugin_name"] = plugin.get("name") or ""
     ros1_markers = (

@@ -180,6 +180,33 @@ class SdfReader:
             bias_stddev=self.number(element, "bias_stddev", 0.0, owner=owner, minimum=0.0),
         )
 
+    def sensor_plugin(
+        self, sensor: ET.Element, filenames: Sequence[str], *, owner: str, what: str, add: str
+    ) -> ET.Element | None:
+        """The sensor's first gazebo_ros plugin of ``filenames``, or None.
+
+        None is warned (Gazebo then publishes nothing on ROS topics), and so are other
+        plugins and a second one of ``filenames``.
+        """
+        plugins = sensor.findall("plugin")
+        ours = [p for p in plugins if (p.get("filename") or "") in filenames]
+        for extra in plugins:
+            if extra not in ours:
+                self.warn(
+                    extra,
+                    f"{owner}plugin {extra.get('filename')!r} is not supported and is ignored",
+                )
+        if len(ours) > 1:
+            self.warn(ours[1], f"{owner}only the first {what} plugin is used")
+        if not ours:
+            self.warn(
+                sensor,
+                f"{owner}no gazebo_ros {what} plugin: like Gazebo, nothing is published on ROS "
+                f"topics (add {add})",
+            )
+            return None
+        return ours[0]
+
     def unknown(self, element: ET.Element, known: Sequence[str], *, owner: str, what: str) -> None:
         for child in element:
             if child.tag not in known:
