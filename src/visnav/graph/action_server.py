@@ -54,8 +54,7 @@ from visnav.graph.qos import QoSProfile, qos_profile_services_default, to_qos
 from visnav.graph.service import Service, _Request
 from visnav.msgs.action import ActionType, get_action_type
 from visnav.msgs.construct import default_message, make
-from visnav.msgs.errors import MessageError
-from visnav.msgs.serde import deserialize, get_message_class
+from visnav.msgs.serde import get_message_class
 from visnav.msgs.srv import get_service_type
 from visnav.msgs.time import ns_to_time, time_to_ns
 
@@ -88,18 +87,9 @@ class _ActionService(Service[Any, Any]):
     """A service whose handler answers when it is ready: ``handler(request, item)``."""
 
     def _serve(self, item: _Request) -> None:
-        if item.remote:
-            try:
-                request = deserialize(memoryview(item.payload), self.srv_type.request_type_name)
-            except MessageError as exc:
-                self.bad_requests += 1
-                text = f"{self.describe()} could not read the request: {exc}"
-                if self.bad_requests == 1:
-                    self.node.get_logger().warning(f"{text} (further ones are only counted)")
-                item.fail(text)
-                return
-        else:
-            request = item.payload
+        request = self._read_request(item)
+        if request is None:
+            return
         try:
             self.callback(request, item)
         except Exception as exc:

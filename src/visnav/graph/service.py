@@ -208,19 +208,24 @@ class Service(Generic[ReqT, RespT]):
             return None
         return functools.partial(self._serve, self.queue.popleft())
 
+    def _read_request(self, item: _Request) -> Any | None:
+        """The request of ``item``; None after answering a payload that does not decode."""
+        if not item.remote:
+            return item.payload
+        try:
+            return deserialize(memoryview(item.payload), self.srv_type.request_type_name)
+        except MessageError as exc:
+            self.bad_requests += 1
+            text = f"{self.describe()} could not read the request: {exc}"
+            if self.bad_requests == 1:
+                self.node.get_logger().warning(f"{text} (further ones are only counted)")
+            item.fail(text)
+            return None
+
     def _serve(self, item: _Request) -> None:
-        if item.remote:
-            try:
-                request = deserialize(memoryview(item.payload), self.srv_type.request_type_name)
-            except MessageError as exc:
-                self.bad_requests += 1
-                text = f"{self.describe()} could not read the request: {exc}"
-                if self.bad_requests == 1:
-                    self.node.get_logger().warning(f"{text} (further ones are only counted)")
-                item.fail(text)
-                return
-        else:
-            request = item.payload
+        request = self._read_request(item)
+        if request is None:
+            return
         response = default_message(self.srv_type.response_type_name)
         try:
             result = self.callback(request, response)
