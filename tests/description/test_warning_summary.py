@@ -269,7 +269,9 @@ def test_a_world_is_one_block_and_no_python_warnings(
     with warnings.catch_warnings(record=True) as caught, caplog.at_level(logging.WARNING):
         warnings.simplefilter("always")
         world = load_world(path)
-    assert len(world.warnings) >= 3
+    assert len(world.warnings) == 1  # the world plugin
+    # Gazebo's own solver and loop settings change nothing visnav simulates: debug only
+    assert not [w for w in world.warnings if "real_time_factor" in w or "<ode>" in w]
     assert not [w for w in caught if issubclass(w.category, WorldWarning)]
     (record,) = [r for r in caplog.records if r.name.startswith("visnav")]
     lines = record.getMessage().splitlines()

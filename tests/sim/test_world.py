@@ -285,7 +285,7 @@ def test_sdf_subset_with_warnings_for_the_rest() -> None:
     texts = [str(w.message) for w in caught]
     assert any("model://cafe_table" in t and "not found" in t for t in texts)
     assert any("<plugin>" in t for t in texts)
-    assert any("<real_time_factor>" in t for t in texts)
+    assert not any("<real_time_factor>" in t for t in texts)  # Gazebo's own loop: debug only
     assert any("'post' is not static" in t for t in texts)
     assert all(t.startswith("gz.world:") for t in texts)
     assert world.warnings == tuple(texts)

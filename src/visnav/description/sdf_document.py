@@ -8,6 +8,7 @@ warning and SDFormat's default, not an error).
 
 from __future__ import annotations
 
+import logging
 import math
 import warnings
 import xml.etree.ElementTree as ET
@@ -35,6 +36,9 @@ SDF_DEFAULTS: dict[str, tuple[float, ...]] = {  # SDFormat's defaults of require
 Pose = tuple["npt.NDArray[np.float64]", "npt.NDArray[np.float64]"]  # (rotation 3x3, translation 3)
 
 
+_LOG = logging.getLogger("visnav.description.world")
+
+
 class SdfReader:
     """Parses SDF documents and reads their values; collects the warnings."""
 
@@ -54,6 +58,14 @@ class SdfReader:
         """A warning that belongs to no element."""
         self.warnings.append(text)
         warnings.warn(text, WorldWarning, stacklevel=4)
+
+    def gazebo_only(self, element: ET.Element, text: str) -> None:
+        """Log, at debug level, an element that only configures Gazebo itself.
+
+        Its client window or its own solver: it changes nothing visnav simulates, so it is
+        not a warning.
+        """
+        _LOG.debug("%s: <%s>: %s", self.where(element), element.tag, text)
 
     def warn(self, element: ET.Element, text: str) -> None:
         """Record and issue a :class:`WorldWarning` about an element."""

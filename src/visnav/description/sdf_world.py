@@ -82,6 +82,16 @@ class _Parsed:
     headlight: dict[str, Any]
 
 
+# Elements that configure Gazebo itself, not the world visnav simulates: its physics engine's
+# own solver and real-time loop (MuJoCo steps at <max_step_size>; the sim node paces itself),
+# and what only Gazebo's client window draws. Logged at debug level (``visnav --debug``).
+_GAZEBO_SOLVER = frozenset(
+    ("real_time_update_rate", "real_time_factor", "ode", "bullet", "simbody", "dart",
+     "max_contacts")
+)  # fmt: skip
+_GAZEBO_CLIENT_SCENE = frozenset(("background", "sky", "grid", "origin_visual"))
+
+
 class _WorldParser:
     def __init__(self, reader: SdfReader, resources: SdfResources) -> None:
         self.r = reader
@@ -100,7 +110,9 @@ class _WorldParser:
         }
         for child in world:
             handler = handlers.get(child.tag)
-            if handler is None:
+            if child.tag == "gui":
+                self.r.gazebo_only(child, "Gazebo's client window; visnav has none")
+            elif handler is None:
                 self.r.warn(child, "not supported by visnav worlds; skipped")
             else:
                 handler(child)
@@ -165,6 +177,8 @@ class _WorldParser:
             if child.tag == "max_step_size":
                 (step,) = self.r.floats(child, 1, (0.001,))
                 self.out.physics["timestep"] = step
+            elif child.tag in _GAZEBO_SOLVER:
+                self.r.gazebo_only(child, "Gazebo's own solver or loop setting; MuJoCo steps")
             else:
                 self.r.warn(child, "physics setting not supported; MuJoCo defaults are used")
 
@@ -178,8 +192,9 @@ class _WorldParser:
                 r, g, b, _ = self.r.colour(child)
                 self.out.headlight["ambient"] = (r, g, b)
             elif child.tag == "shadows":
-                if self.r.boolean(child, default=False):
-                    self.r.warn(child, "shadows are always off in visnav")
+                self.r.gazebo_only(child, "shadows are always off in visnav's cameras")
+            elif child.tag in _GAZEBO_CLIENT_SCENE:
+                self.r.gazebo_only(child, "drawn by Gazebo's client only")
             else:
                 self.r.warn(child, "scene setting not supported; skipped")
 
