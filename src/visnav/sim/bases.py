@@ -45,7 +45,7 @@ from visnav.msgs.types import (
     TwistWithCovariance,
 )
 from visnav.sim.errors import SimulatorError
-from visnav.sim.plugin_factories import RobotBuild
+from visnav.sim.plugin_factories import RobotBuild, diff_drive_controller
 from visnav.sim.plugins import (
     DEFAULT_QOS,
     DiffDrivePlugin,
@@ -56,7 +56,6 @@ from visnav.sim.plugins import (
 )
 from visnav.sim.sensor_timing import SensorClock
 from visnav.sim.vehicles._state import BodyReader
-from visnav.sim.vehicles.diff_drive import DiffDriveController
 from visnav.tf.ros import TransformBroadcaster
 from visnav.tf.transforms import yaw_from_matrix
 
@@ -264,23 +263,7 @@ def skid_steer_as_diff_drive(skid: SkidSteerSpec) -> DiffDriveSpec:
 
 def make_skid_steer(build: RobotBuild, skid: SkidSteerSpec) -> SimPlugin:
     """``libgazebo_ros_skid_steer_drive.so``: four wheels, ``cmd_vel`` in, odometry out."""
-    drive = skid_steer_as_diff_drive(skid)
-    urdf = build.description.urdf
-    base_link = drive.robot_base_frame if drive.robot_base_frame in urdf.links else urdf.root
-    spec = replace(
-        drive,
-        command_topic=build.push(drive.command_topic) or drive.command_topic,
-        odometry_topic=build.push(drive.odometry_topic) or drive.odometry_topic,
-        odometry_frame=build.frame(drive.odometry_frame),
-        robot_base_frame=build.frame(drive.robot_base_frame),
-    )
-    controller = DiffDriveController(
-        build.model,
-        spec,
-        base_body=build.handles.bodies[base_link],
-        prefix=f"{build.name}/",
-        seed=build.seed_of(skid.plugin_name),
-    )
+    spec, controller = diff_drive_controller(build, skid_steer_as_diff_drive(skid))
     return SkidSteerPlugin(build.node(skid.plugin_name), spec, controller)
 
 

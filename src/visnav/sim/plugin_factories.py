@@ -55,6 +55,7 @@ __all__ = [
     "SIM_PLUGINS",
     "RobotBuild",
     "build_plugins",
+    "diff_drive_controller",
     "make_camera",
     "make_diff_drive",
     "make_imu",
@@ -225,9 +226,14 @@ def make_p3d(build: RobotBuild, odom: OdometrySpec) -> SimPlugin | None:
     )
 
 
-def make_diff_drive(build: RobotBuild, drive: DiffDriveSpec) -> SimPlugin | None:
-    """``libgazebo_ros_diff_drive.so``: ``cmd_vel`` in, wheel torques, odometry out."""
-    model, urdf = build.model, build.description.urdf
+def diff_drive_controller(
+    build: RobotBuild, drive: DiffDriveSpec
+) -> tuple[DiffDriveSpec, DiffDriveController]:
+    """``drive`` with the robot's namespace and frame prefix pushed on, and its controller.
+
+    The odometry body is the link named ``robot_base_frame``, else the URDF root.
+    """
+    urdf = build.description.urdf
     base_link = drive.robot_base_frame if drive.robot_base_frame in urdf.links else urdf.root
     spec = replace(
         drive,
@@ -237,12 +243,19 @@ def make_diff_drive(build: RobotBuild, drive: DiffDriveSpec) -> SimPlugin | None
         robot_base_frame=build.frame(drive.robot_base_frame),
     )
     controller = DiffDriveController(
-        model,
+        build.model,
         spec,
         base_body=build.handles.bodies[base_link],
         prefix=f"{build.name}/",
         seed=build.seed_of(drive.plugin_name),
     )
+    return spec, controller
+
+
+def make_diff_drive(build: RobotBuild, drive: DiffDriveSpec) -> SimPlugin | None:
+    """``libgazebo_ros_diff_drive.so``: ``cmd_vel`` in, wheel torques, odometry out."""
+    model = build.model
+    spec, controller = diff_drive_controller(build, drive)
     joints = build.handles.joints
     wheels = [
         (j, int(model.joint(joints[j]).qposadr[0]))
