@@ -436,6 +436,37 @@ def test_depth_outside_clip_is_invalid(sensors: list[CameraSensor], encoding: st
     assert (far == 0).all() if encoding == "16UC1" else np.isnan(far).all()
 
 
+def wide_clip_scene(mj: mujoco.MjSpec) -> None:
+    # clip_scene in a world as large as a building (the far plane's depth is scaled by
+    # the model's extent, and rounds below clip far in such a world)
+    clip_scene(mj)
+    mj.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1], pos=[-30, 20, 0])
+
+
+@pytest.mark.parametrize("far", [0.3, 0.45, 1.7])
+@pytest.mark.parametrize("noisy", [False, True])
+def test_a_far_clip_nearer_than_the_scene_gives_no_depth(
+    sensors: list[CameraSensor], far: float, noisy: bool
+) -> None:
+    # every surface of clip_scene but the 0.31 m box is beyond these far clips: the
+    # far plane is "no return" (NaN), never a depth of clip far, with or without noise
+    from visnav.description.noise_specs import DepthNoise
+
+    spec = depth_spec(clip_far=far, max_depth=far)
+    if noisy:
+        spec = replace(spec, depth_noise=DepthNoise(disparity_stddev=0.07, disparity_step=0.125))
+    model, data = build_scene(spec, wide_clip_scene)
+    sensor = CameraSensor(model, spec, camera="cam", render_color=False, seed=1)
+    sensors.append(sensor)
+    depth = sensor.render(data).depth
+    assert depth is not None
+    beyond = (slice(0, 3), slice(40, 60)), (slice(30, 46), slice(56, 63))  # sky, far wall
+    for region in beyond:
+        assert np.isnan(depth[region]).all(), np.unique(depth[region])[:5]
+    if far > 0.31:  # the near box is within range
+        assert np.isfinite(depth[10:20, 2:10]).mean() > 0.9
+
+
 # --------------------------------------------------------------------------- messages
 
 

@@ -96,6 +96,7 @@ _XYZRGB_DTYPE = np.dtype(
 )
 _CANVAS_LIMIT = 2.5  # max render canvas size / image size with lens distortion
 _CANVAS_MARGIN = 2.0  # pixels of margin around the distorted image's rays
+_FAR_PLANE_TOLERANCE = 1e-6  # relative: depths this close to the far clip are no return
 
 
 # --------------------------------------------------------------------------- distortion
@@ -564,6 +565,10 @@ class CameraSensor:
         spec = self.spec
         out = self._warp(depth, nearest=True)  # a fresh array: modified in place
         lo, hi = spec.depth_range
+        # The far plane comes back from the depth buffer a few float32 ulps either side of
+        # clip far: a pixel there saw nothing, so it is no return (NaN), not a depth of
+        # clip far (every pixel of a camera whose far clip is nearer than the scene).
+        hi *= 1.0 - _FAR_PLANE_TOLERANCE
         if not spec.noise.active and out.flags.c_contiguous:
             noisy_depth_in_range(out, spec.depth_noise, self.rng, (lo, hi))  # one pass
             return out

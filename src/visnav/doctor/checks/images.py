@@ -40,6 +40,7 @@ IMAGE = "sensor_msgs/msg/Image"
 _COLOR8 = {"rgb8": (0, 1, 2), "rgba8": (0, 1, 2), "bgr8": (2, 1, 0), "bgra8": (2, 1, 0)}
 _DEPTH = ("32FC1", "16UC1", "32FC", "16UC")
 _STRIDE = 4  # statistics on every 4th row and column
+_SHORT_FAR_CLIP_M = 1.0  # a depth far clip nearer than this is short for any navigation
 
 
 def _layout_error(msg: Any) -> dict[str, Any] | None:
@@ -337,19 +338,33 @@ def _depth(
             all_valid.append(valid)
     n = len(frames)
     if empty:
+        evidence: dict[str, Any] = {
+            "topic": name,
+            "encoding": encoding,
+            "frames_sampled": n,
+            "frames_without_depth": empty,
+            **{k: round(v, 4) for k, v in fractions.items()},
+        }
+        fix = (
+            "check the depth sensor's range (min/max depth, clip near/far) against the scene, "
+            "and that the driver fills the buffer (NaN/0 mean 'no return')"
+        )
+        decl = ctx.declared.get(name)
+        if decl is not None and decl.clip_far is not None and math.isfinite(decl.clip_far):
+            evidence["declared_clip_far_m"] = decl.clip_far
+            evidence["declared_by"] = decl.source
+            if decl.clip_far < _SHORT_FAR_CLIP_M:
+                fix = (
+                    f"the sensor sees nothing beyond {decl.clip_far:g} m ({decl.source}): "
+                    "raise <clip><far> (and the plugin's max_depth / pointCloudCutoffMax) to "
+                    "the range of the real sensor, e.g. 10 m"
+                )
         yield Finding(
             Severity.ERROR if empty == n else Severity.WARNING,
             "images.depth_invalid",
             f"{name}: {empty} of {n} sampled depth frames hold no valid depth",
-            {
-                "topic": name,
-                "encoding": encoding,
-                "frames_sampled": n,
-                "frames_without_depth": empty,
-                **{k: round(v, 4) for k, v in fractions.items()},
-            },
-            "check the depth sensor's range (min/max depth, clip near/far) against the scene, "
-            "and that the driver fills the buffer (NaN/0 mean 'no return')",
+            evidence,
+            fix,
             name,
         )
     if all_valid:

@@ -4,6 +4,15 @@ Rates are measured in ROS time: on header stamps when the topic has sane stamps,
 otherwise on arrival times mapped through ``/clock`` (so a simulator running slower
 than real time still shows its sensors' declared rates). A *gap* is a period longer
 than ``max(5 x median period, median + 0.2 s)``.
+
+Only *periodic* topics are judged on their timing: those with a declared rate and those
+of the types sensors and state publishers stream (images, camera_info, scans, clouds,
+IMU, odometry, joint states, ``/gazebo/model_states``, ...). Other topics (goals, paths,
+plans, markers, maps) are *event* topics: they publish when something happens, so an
+uneven period or a pause is their normal life, and silence is reported as information
+only. Jitter measured on arrival times is judged only for periods of 5 ms and more:
+below that, arrival times show how the transport batches messages, not when the
+publisher sent them (the simulator's per-step ``/gazebo/model_states`` at 1 kHz).
 """
 
 from __future__ import annotations
@@ -18,10 +27,42 @@ from visnav.doctor.context import CheckContext
 from visnav.doctor.findings import Finding, Severity
 from visnav.doctor.observation import TopicData
 
-__all__ = ["StreamStats", "check_no_messages", "check_rates", "stream_stats"]
+__all__ = [
+    "PERIODIC_TYPES",
+    "StreamStats",
+    "check_no_messages",
+    "check_rates",
+    "is_periodic",
+    "stream_stats",
+]
 
 _SKIP = frozenset({"/clock", "/tf", "/tf_static", "/rosout", "/parameter_events"})
 _MIN_MESSAGES = 5
+_MIN_ARRIVAL_JITTER_PERIOD_S = 0.005
+PERIODIC_TYPES = frozenset(
+    {
+        "sensor_msgs/msg/Image",
+        "sensor_msgs/msg/CompressedImage",
+        "sensor_msgs/msg/CameraInfo",
+        "sensor_msgs/msg/LaserScan",
+        "sensor_msgs/msg/MultiEchoLaserScan",
+        "sensor_msgs/msg/PointCloud2",
+        "sensor_msgs/msg/PointCloud",
+        "sensor_msgs/msg/Imu",
+        "sensor_msgs/msg/Range",
+        "sensor_msgs/msg/JointState",
+        "sensor_msgs/msg/MagneticField",
+        "sensor_msgs/msg/NavSatFix",
+        "sensor_msgs/msg/FluidPressure",
+        "sensor_msgs/msg/Temperature",
+        "nav_msgs/msg/Odometry",
+        "rosgraph_msgs/msg/Clock",
+        "tf2_msgs/msg/TFMessage",
+        "gazebo_msgs/msg/ModelStates",
+        "gazebo_msgs/msg/LinkStates",
+    }
+)
+"""Types that sensors and state publishers stream at a rate."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +127,23 @@ def stream_stats(ctx: CheckContext, topic: TopicData) -> StreamStats | None:
     )
 
 
+def is_periodic(ctx: CheckContext, name: str, type_name: str | None) -> bool:
+    """True for a topic judged on its timing: a declared rate or a streamed type."""
+    if _declared_rate(ctx, name) is not None:
+        return True
+    return type_name in PERIODIC_TYPES
+
+
+def _type_of(ctx: CheckContext, name: str) -> str | None:
+    data = ctx.obs.topics.get(name)
+    if data is not None:
+        return data.type_name
+    exp = ctx.expected(name)
+    if exp is not None and exp.type is not None:
+        return exp.type
+    return next((e.type_name for e in ctx.endpoints(name)), None)
+
+
 def check_no_messages(
     ctx: CheckContext, *, skip: frozenset[str] = frozenset()
 ) -> Iterator[Finding]:
@@ -106,9 +164,10 @@ def check_no_messages(
             continue
         subs = ctx.endpoints(name, "subscription")
         exp = ctx.expected(name)
+        event = not is_periodic(ctx, name, _type_of(ctx, name))
         if exp is not None and not exp.optional:
             severity = Severity.ERROR
-        elif subs:
+        elif subs and not event:
             severity = Severity.WARNING
         else:
             severity = Severity.INFO
@@ -122,8 +181,13 @@ def check_no_messages(
                 "publishers": sorted({e.node_fqn for e in pubs}),
                 "subscribers": sorted({e.node_fqn for e in subs}),
             },
-            "check that the publishing node is running and producing data (its inputs, "
-            "its trigger); observe longer with --duration if the topic is slow",
+            (
+                "nothing to fix if no such event happened while observing (an event topic: "
+                "goals, paths, plans, markers)"
+                if event and severity is Severity.INFO
+                else "check that the publishing node is running and producing data (its "
+                "inputs, its trigger); observe longer with --duration if the topic is slow"
+            ),
             name,
         )
 
@@ -141,6 +205,8 @@ def check_rates(ctx: CheckContext) -> Iterator[Finding]:
     """``rates.mismatch``, ``.jitter``, ``.gap``, ``.intermittent`` and ``.stopped``."""
     for topic in ctx.obs.topics.values():
         if topic.name in _SKIP or topic.latched or topic.count < _MIN_MESSAGES:
+            continue
+        if not is_periodic(ctx, topic.name, topic.type_name):
             continue
         stats = stream_stats(ctx, topic)
         if stats is None:
@@ -173,7 +239,8 @@ def _rate_findings(ctx: CheckContext, topic: TopicData, s: StreamStats) -> Itera
                 "correct the declared rate",
                 name,
             )
-    if s.count >= 10 and s.cv > 0.5:
+    judge_jitter = s.domain == "stamps" or s.median_period_s >= _MIN_ARRIVAL_JITTER_PERIOD_S
+    if s.count >= 10 and s.cv > 0.5 and judge_jitter:
         yield Finding(
             Severity.WARNING,
             "rates.jitter",

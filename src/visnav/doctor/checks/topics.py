@@ -5,6 +5,7 @@ from __future__ import annotations
 import difflib
 from collections.abc import Iterator
 
+from visnav.doctor.checks.rates import is_periodic
 from visnav.doctor.context import CheckContext
 from visnav.doctor.findings import Finding, Severity
 from visnav.graph.graph_cache import EndpointInfo
@@ -182,8 +183,11 @@ def check_graph_topics(
                 )
             elif topic not in skip:
                 similar = _similar(topic, _of_types(ctx, published, sub_types))
+                # an event input (a goal, an initial pose) has a publisher only while a
+                # tool sends one (RViz's buttons, `visnav goal`, `visnav topic pub`)
+                event = not similar and not any(is_periodic(ctx, topic, t) for t in sub_types)
                 yield Finding(
-                    Severity.WARNING,
+                    Severity.INFO if event else Severity.WARNING,
                     "topics.no_publisher",
                     f"{topic} has subscribers but no publisher",
                     {
@@ -192,8 +196,13 @@ def check_graph_topics(
                         "type": sorted(sub_types),
                         **({"similar_published_topics": similar} if similar else {}),
                     },
-                    f"start the node that publishes {topic}"
-                    + (f", or remap the subscription to {similar[0]}" if similar else ""),
+                    (
+                        f"nothing to fix if {topic} carries events that a tool sends when "
+                        "needed; otherwise start the node that publishes it"
+                        if event
+                        else f"start the node that publishes {topic}"
+                        + (f", or remap the subscription to {similar[0]}" if similar else "")
+                    ),
                     topic,
                 )
     if unread:
