@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pytest
 
 from visnav.doctor.checks.frames import cloud_convention
 from visnav.doctor.synthetic import StreamEvent
@@ -42,6 +43,14 @@ def test_optical_cloud_in_a_body_frame(dr: Any, clean_events: Any) -> None:
     assert f.evidence["fraction_z_positive"] == 1.0
     assert "'depth_camera_optical_frame'" in f.fix
     assert f.evidence["decided_by"].startswith("TF")
+
+
+@pytest.mark.parametrize("frame", ["odom", "map", "world"])
+def test_a_cloud_in_a_world_frame_has_no_convention(dr: Any, clean_events: Any, frame: str) -> None:
+    # an accumulated map (SLAM's map points in 'map') has points on every side of the
+    # origin, or all above the ground: "in front" says nothing about a convention
+    report = dr.run(dr.mutate(clean_events, CLOUD, _frame(frame)))
+    dr.none_of(report, "frames.rotated_cloud")
 
 
 def test_body_cloud_in_an_optical_frame(dr: Any, clean_events: Any) -> None:

@@ -91,11 +91,26 @@ def _optical_sibling(ctx: CheckContext, frame: str) -> str | None:
     return sorted(siblings)[0] if siblings else None
 
 
+_WORLD_FRAMES = frozenset({"map", "odom", "world", "earth"})
+"""REP 105's world-fixed frames (and Gazebo's ``world``)."""
+
+
+def _is_world_frame(ctx: CheckContext, frame: str) -> bool:
+    """A world-fixed frame (its points surround the origin: no "in front" to judge).
+
+    An accumulated map's points lie on every side of its origin, so the share of points
+    in front of a sensor says nothing about their convention.
+    """
+    if frame in _WORLD_FRAMES or frame in {f.lstrip("/") for _, f, _ in ctx.odometry()}:
+        return True
+    return frame in ctx.tf_frames and ctx.tf_root(frame) == frame
+
+
 def check_frame_conventions(ctx: CheckContext) -> Iterator[Finding]:
     """``frames.rotated_cloud``, ``frames.image_in_body_frame``, ``frames.scan_in_...``."""
     for topic in ctx.topics_of_type(CLOUD):
         frame = topic.frame_id.lstrip("/")
-        if not frame or not topic.samples:
+        if not frame or not topic.samples or _is_world_frame(ctx, frame):
             continue
         kind, how = ctx.frame_kind(frame)
         votes: list[str] = []
