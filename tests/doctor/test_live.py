@@ -125,3 +125,45 @@ def test_simulated_car_with_the_depth_frame_on_the_camera_link() -> None:
     assert "'depth_camera_optical_frame'" in cloud.fix
     (image,) = report.find("frames.image_in_body_frame", "/depth_camera/depth/image_raw")
     assert image.evidence["optical_frame_on_tf"] == "depth_camera_optical_frame"
+
+
+def _far_clip_car() -> str:
+    from visnav.description.robots import car_description_path
+
+    text = car_description_path().read_text()
+    start = text.index('<sensor type="depth"')
+    end = text.index("</sensor>", start)
+    sensor = text[start:end].replace("<far>10.0</far>", "<far>0.3</far>")
+    sensor = sensor.replace("<max_depth>10.0</max_depth>", "<max_depth>0.3</max_depth>")
+    assert "<far>0.3</far>" in sensor
+    return text[:start] + sensor + text[end:]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("source", ["live", "bag"])
+def test_simulated_car_whose_depth_far_clip_hides_the_scene(source: str, tmp_path: Any) -> None:
+    """A depth camera with a 0.3 m far clip in the office: every pixel is no return."""
+    from visnav.bag.recorder import BagRecorder
+    from visnav.doctor import doctor_bag
+    from visnav.sim.simulator import RobotSpawn, Simulator
+
+    with (
+        Context(transport="local") as ctx,
+        Simulator("office", [RobotSpawn(source=_far_clip_car())], context=ctx) as sim,
+    ):
+        if source == "live":
+            observer = LiveObserver(ctx)
+            sim.run(0.6)
+            report = diagnose(observer.observation(), fixed_frame="odom")
+        else:
+            recorder = BagRecorder(ctx, None, tmp_path / "bag", use_sim_time=True)
+            recorder.start()
+            sim.run(0.6)
+            bag = recorder.stop()
+    if source == "bag":
+        report = doctor_bag(bag, fixed_frame="odom")
+    (depth,) = report.find("images.depth_invalid", "/depth_camera/depth/image_raw")
+    assert depth.severity is Severity.ERROR
+    assert depth.evidence["nan_fraction"] == 1.0
+    assert depth.evidence["declared_clip_far_m"] == 0.3
+    assert "0.3 m" in depth.fix
