@@ -1,9 +1,10 @@
 """``visnav map``: save a live ``/map`` (map_saver) and describe a saved map (map_server).
 
-* ``visnav map save [-f NAME] [--topic /map] [--occ 65] [--free 25] [--timeout S]``:
-  like ``rosrun map_server map_saver -f NAME``, waits for one ``nav_msgs/OccupancyGrid``
-  on the topic (transient local, so a latched map arrives at once) and writes
-  ``NAME.yaml`` and ``NAME.pgm`` (:func:`visnav.mapping.map_io.save_map`). map_saver waits
+* ``visnav map save [-f NAME] [--topic /map] [--occ 65] [--free 25] [--timeout S]
+  [map:=TOPIC]``: like ``rosrun map_server map_saver -f NAME [map:=TOPIC]``, waits for
+  one ``nav_msgs/OccupancyGrid`` on the topic (transient local, so a latched map arrives
+  at once) and writes ``NAME.yaml`` and ``NAME.pgm``
+  (:func:`visnav.mapping.map_io.save_map`; ``~`` in NAME is expanded). map_saver waits
   forever; ``--timeout`` gives up with an error.
 * ``visnav map info PATH.yaml``: loads the map as map_server does and prints its size,
   resolution, origin, mode and free / occupied / unknown cell counts.
@@ -39,6 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--occ", type=int, default=65, help="cells >= this are occupied (65)")
     p.add_argument("--free", type=int, default=25, help="cells 0..this are free (25)")
     p.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
+    p.add_argument(
+        "remap", nargs="*", metavar="map:=TOPIC", help="map_saver's remapping (same as --topic)"
+    )
     p.set_defaults(func=cmd_save)
 
     p = sub.add_parser("info", help="describe a map YAML (map_server) or a SLAM map .npz")
@@ -57,7 +61,16 @@ def cmd_save(args: argparse.Namespace) -> int:
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         msg = f"map save: --timeout {args.timeout}: expected a positive number of seconds"
         raise MapFileError(msg)
-    base = Path(args.file)
+    for item in args.remap:
+        name, sep, target = item.partition(":=")
+        if not sep or name.lstrip("/") != "map" or not target.strip():
+            msg = (
+                f"map save: argument {item!r}: expected map:=TOPIC (map_saver's remapping of "
+                "its input) or an option: -f NAME, --occ N, --free N, --topic TOPIC"
+            )
+            raise MapFileError(msg)
+        args.topic = target
+    base = Path(args.file).expanduser()
     for suffix in (".yaml", ".pgm"):
         check_output_file(base.with_name(base.name + suffix), what=f"the map {suffix[1:]}")
     received: list[OccupancyGrid] = []

@@ -7,6 +7,10 @@ transient local, depth 1), ``map`` (``nav_msgs/OccupancyGrid``) and ``map_metada
 (``nav_msgs/MapMetaData``), stamped with the clock at load time, in ``frame_id``.
 
 Parameters: ``yaml_filename`` (required), ``frame_id`` ("map"), ``topic_name`` ("map").
+ROS 1's command line ``map_server MAP.yaml [map:=TOPIC ...]`` (a roslaunch ``args=``)
+becomes these with :func:`map_server_args`: the YAML is ``yaml_filename``, ``from:=to``
+items are remappings; the deprecated ``map_server IMAGE RESOLUTION`` form is refused
+(write a map YAML beside the image).
 
 Services (``nav_msgs/srv/GetMap``, the loaded map): ``static_map`` (ROS 1 map_server's
 name, relative: ``/static_map`` in the root namespace) and ``~/map`` (nav2's:
@@ -19,6 +23,7 @@ start, naming the file and field.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -32,7 +37,71 @@ from visnav.msgs.types import MapMetaData, OccupancyGrid
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["MapServerNode", "MapServerParams"]
+__all__ = ["MapServerNode", "MapServerParams", "map_server_args", "map_server_params_from_args"]
+
+_USAGE = "map_server MAP.yaml [map:=TOPIC]"
+
+
+def map_server_args(args: Sequence[str]) -> tuple[dict[str, Any], tuple[tuple[str, str], ...]]:
+    """ROS 1 map_server's command line as this node's parameters and remappings.
+
+    Args:
+        args: The arguments after the executable (a roslaunch ``args=`` split on
+            whitespace): the map YAML, and ``from:=to`` remappings anywhere.
+
+    Returns:
+        ``({"yaml_filename": path}, ((from, to), ...))``.
+
+    Raises:
+        MapFileError: no YAML, more than one positional argument (the deprecated
+            ``IMAGE RESOLUTION`` form is named), a private ``_param:=`` or special
+            ``__name:=`` argument, or a remapping without a target.
+    """
+    positional: list[str] = []
+    remaps: list[tuple[str, str]] = []
+    for raw in args:
+        item = str(raw)
+        name, sep, target = item.partition(":=")
+        if not sep:
+            positional.append(item)
+            continue
+        if not name or name.startswith("_") or not target.strip():
+            msg = (
+                f"map_server: argument {item!r}: expected a remapping FROM:=TO (map:=/my_map); "
+                "map_server's parameters (frame_id) and the node name go in the launch file. "
+                f"Usage: {_USAGE}"
+            )
+            raise MapFileError(msg)
+        remaps.append((name, target))
+    if len(positional) == 2:
+        msg = (
+            f"map_server {' '.join(positional)}: the deprecated IMAGE RESOLUTION form is not "
+            "taken. Fix: write a map YAML (image, resolution, origin, negate, "
+            "occupied_thresh, free_thresh) beside the image and pass it"
+        )
+        raise MapFileError(msg)
+    if len(positional) != 1 or not positional[0].strip():
+        msg = f"map_server: arguments {list(args)!r}: expected one map YAML. Usage: {_USAGE}"
+        raise MapFileError(msg)
+    return {"yaml_filename": positional[0]}, tuple(remaps)
+
+
+def map_server_params_from_args(args: Sequence[str]) -> dict[str, Any]:
+    """``map_server MAP.yaml`` as this node's parameters (a YAML launch ``args:``).
+
+    Raises:
+        MapFileError: as :func:`map_server_args`, and for a remapping (a YAML launch file
+            gives it as ``remap: {map: TOPIC}``).
+    """
+    params, remaps = map_server_args(args)
+    if remaps:
+        (name, target), *_ = remaps
+        msg = (
+            f"map_server args: {name}:={target} is a remapping; in a YAML launch file write "
+            f"remap: {{{name}: {target}}} beside args"
+        )
+        raise MapFileError(msg)
+    return params
 
 
 @dataclass(frozen=True)
