@@ -120,3 +120,12 @@ def test_a_far_clip_nearer_than_the_scene_is_named(dr: Any, clean_events: Any) -
     assert f.evidence["declared_clip_far_m"] == 0.3
     assert "0.3 m" in f.fix
     assert "<far>" in f.fix
+
+
+def test_messages_lost_by_the_observer_are_not_jitter(dr: Any, clean_events: Any) -> None:
+    # a steady 50 Hz stream read by a busy subscriber: 1, 2 or 3 periods between messages
+    rng = np.random.default_rng(7)
+    keep = rng.random(400) > 0.5
+    events = dr.mutate(clean_events, "/odom", lambda m, i: m if keep[i] or i == 0 else None)
+    report = dr.run(events)
+    dr.none_of(report, "rates.jitter")

@@ -195,8 +195,8 @@ class DroneMission(Node):
             )
             raise ScenarioError(msg) from None
         self.goal = (goal[0], goal[1], p.takeoff_height)
-        hold = self.create_publisher(PoseStamped, "command/pose", qos_profile_latched)
-        hold.publish(pose_stamped(start[0], start[1], p.takeoff_height, 0, self._frame))
+        self._hold = self.create_publisher(PoseStamped, "command/pose", qos_profile_latched)
+        self._hold_at: tuple[float, float, float] | None = (start[0], start[1], p.takeoff_height)
         self._pub = self.create_publisher(
             PoseStamped, "/move_base_simple/goal", qos_profile_latched
         )
@@ -204,6 +204,9 @@ class DroneMission(Node):
 
     def _tick(self) -> None:
         now = self.get_clock().now_ns()
+        if self._hold_at is not None and now > 0:  # stamped once sim time has begun
+            self._hold.publish(pose_stamped(*self._hold_at, now, self._frame))
+            self._hold_at = None
         if now >= self._goal_ns:
             self._timer.cancel()
             self._pub.publish(pose_stamped(*self.goal, now, self._frame))
