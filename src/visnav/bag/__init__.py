@@ -10,7 +10,9 @@ Library entry points (the ``visnav bag`` verbs wrap them):
 * :func:`read_bag` / :class:`BagReader`, :func:`bag_info` (``info``),
 * :func:`convert_bag` (``convert``), :func:`reindex_bag` (``reindex``),
 * damaged or unclosed bags are read by scanning (:mod:`visnav.bag.recovery`), with a warning,
-* :class:`BagWriter` for writing serialized messages directly.
+* :class:`BagWriter` for writing serialized messages directly,
+* :class:`ImageCompression`: images recorded as image_transport's ``compressed`` /
+  ``compressedDepth`` topics (:mod:`visnav.bag.image_compression`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from visnav.bag.errors import (
     TopicNotInBagError,
     UnknownStorageError,
 )
+from visnav.bag.image_compression import ImageCompression
 from visnav.bag.info import BagInfo, TopicStats, bag_info, format_info
 from visnav.bag.player import BagPlayer, PlayStats
 from visnav.bag.reader import BagMessage, BagReader, RawMessage, TopicMeta, read_bag
@@ -47,6 +50,7 @@ __all__ = [
     "BagWriter",
     "ConvertResult",
     "CorruptBagError",
+    "ImageCompression",
     "PlayStats",
     "RawMessage",
     "RecordError",

@@ -13,6 +13,14 @@ chunks are intact) is skipped, logged once per topic and counted
 serialized bytes without decoding them and leaves the failure to each subscriber; visnav
 decodes before publishing (in-process subscribers get message objects), so it skips instead.
 
+Images recorded through image_transport's compressed transports are played as ``rosbag
+play`` plays them: the ``<topic>/compressed`` / ``<topic>/compressedDepth`` topics, as
+recorded (``sensor_msgs/CompressedImage``). Subscribers of raw images (visnav's SLAM, depth
+to scan, image_proc) then need them decoded: ``decompress=True`` (``visnav bag play
+--decompress``) also publishes each one decoded as a ``sensor_msgs/Image`` on ``<topic>``,
+what ``rosrun image_transport republish compressed in:=<topic> raw out:=<topic>`` does in
+ROS (skipped for a topic whose raw form is in the bag too).
+
 Playback runs in the calling thread (:meth:`BagPlayer.play`) or a background thread
 (:meth:`BagPlayer.start`); publishing is thread-safe, and subscribers in the same context
 are served by whoever spins it.
@@ -29,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from visnav.bag.errors import BagError, CorruptBagError
+from visnav.bag.image_compression import decode_image, image_topics
 from visnav.bag.qos import playback_qos
 from visnav.bag.reader import BagReader
 from visnav.graph.context import Context
@@ -38,6 +47,7 @@ from visnav.graph.qos import QoSProfile, ReliabilityPolicy
 from visnav.msgs.serde import get_message_class
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Clock as ClockMsg
+from visnav.msgs.types import Image
 
 __all__ = ["BagPlayer", "PlayStats", "parse_remaps"]
 
@@ -110,6 +120,8 @@ class BagPlayer:
         remap: topic remappings ``{"from": "to"}`` or ``["from:=to"]``.
         delay_s: wait this long after creating the publishers before the first message
             (lets other processes discover them; ``ros2 bag play --delay``).
+        decompress: also publish compressed image topics decoded, as Images on their base
+            topic (module docstring).
         node_name: the player node's name.
 
     Raises:
@@ -130,6 +142,7 @@ class BagPlayer:
         remap: Mapping[str, str] | Sequence[str] | None = None,
         delay_s: float = 0.0,
         node_name: str = "visnav_bag_player",
+        decompress: bool = False,
     ) -> None:
         if not rate > 0:
             msg = f"rate is {rate}: expected a positive factor (1.0 = recorded speed)"
@@ -158,6 +171,8 @@ class BagPlayer:
             )
             raise BagError(msg)
         self._node_name = node_name
+        self.decompress = decompress
+        self._decoded: dict[str, tuple[Publisher[Any], str]] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.stats = PlayStats()
@@ -223,7 +238,27 @@ class BagPlayer:
             cls = get_message_class(meta.type_name)
             pubs[name] = (node.create_publisher(cls, out, playback_qos(meta.qos)), out)
             self.stats.published.setdefault(out, 0)
+        if self.decompress:
+            all_topics = ((n, m.type_name) for n, m in self._reader.topics.items())
+            for base, stored in image_topics(all_topics).items():
+                if stored != base and stored in pubs:
+                    out = self.remap.get(base, base)
+                    qos = playback_qos(self._reader.topics[stored].qos)
+                    self._decoded[stored] = (node.create_publisher(Image, out, qos), out)
+                    self.stats.published.setdefault(out, 0)
         return pubs
+
+    def _decode_image(self, topic: str, msg: Any) -> Image | None:
+        """``msg`` decoded for ``--decompress`` (ahead of its time), None if it does not decode."""
+        try:
+            return decode_image(msg)
+        except ValueError as exc:
+            skipped = self.stats.undecodable.get(topic, 0) + 1
+            self.stats.undecodable[topic] = skipped
+            if skipped == 1:
+                out = self._decoded[topic][1]
+                _LOG.warning("%s: not decoded to %s: %s (counting any more)", topic, out, exc)
+            return None
 
     def play(self) -> PlayStats:
         """Publish the bag (blocking) and return the statistics.
@@ -284,6 +319,7 @@ class BagPlayer:
                 if skipped == 1:
                     _LOG.warning("%s; skipping it (and counting any more on that topic)", exc)
                 continue
+            image = self._decode_image(raw.topic, msg) if raw.topic in self._decoded else None
             if not w0:
                 # Start the clock once the first message is in hand, so opening the bag and
                 # reading its first chunk does not delay the first message against the rest.
@@ -295,5 +331,9 @@ class BagPlayer:
             stats.lateness_ns.append(time.monotonic_ns() - target)
             pub.publish(msg)
             stats.published[out] += 1
+            if image is not None:
+                decoded_pub, decoded_out = self._decoded[raw.topic]
+                decoded_pub.publish(image)
+                stats.published[decoded_out] += 1
         if clock_pub is not None and w0 and not self._stop.is_set():
             clock_until(time.monotonic_ns())

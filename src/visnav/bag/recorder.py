@@ -23,12 +23,21 @@ this process, or, with ``use_sim_time=True``, the ``/clock`` time at the callbac
 (0.5 s) puts the open chunk into the file, so a killed recorder loses at most that much.
 A write error (disk full, file size limit) stops the recording: :attr:`BagRecorder.error`
 is set, and :meth:`BagRecorder.stop` closes the bag and raises :class:`RecordError`.
+
+With ``image_transport=ImageCompression()`` the camera images are stored as image_transport's
+compressed transports publish them: a ``sensor_msgs/Image`` topic ``T`` becomes ``T/compressed``
+(JPEG) or, for depth, ``T/compressedDepth`` (PNG), of type ``sensor_msgs/CompressedImage``
+(:mod:`visnav.bag.image_compression`), chosen from the first message; the compression runs on
+the writer thread. ``rosbag record`` stores what is published, so a ROS user records the
+``/compressed`` topics the camera driver publishes; visnav's simulated cameras publish raw
+images only, and the recorder makes the same messages itself.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import errno
+import logging
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -36,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from visnav.bag.errors import BagError, RecordError
+from visnav.bag.image_compression import IMAGE, ImageCompression
 from visnav.bag.qos import endpoint_qos
 from visnav.bag.storage import check_format
 from visnav.bag.write_queue import DEFAULT_BUFFER_BYTES, WriteQueue
@@ -52,6 +62,8 @@ from visnav.graph.subscription import SerializedMessage
 from visnav.msgs.serde import get_message_class
 
 __all__ = ["BagRecorder", "RecordedTopic", "compile_exclude"]
+
+_LOG = logging.getLogger("visnav.bag")
 
 RECORD_DEPTH = 1000
 """Keep-last depth of the recorder's subscriptions (a busy executor loses nothing small)."""
@@ -123,6 +135,10 @@ class BagRecorder:
         node_name: the recorder node's name.
         buffer_bytes: most bytes of messages waiting for the writer thread before new ones
             are dropped (and counted); ``rosbag record --buffsize``.
+        topic_log_level: the :mod:`logging` level of the "recording '/topic'" line logged
+            per topic (``logging.DEBUG`` keeps a scenario run's terminal quiet).
+        image_transport: store Image topics compressed (see the module docstring); None
+            (default) stores them raw.
 
     Raises:
         UnknownStorageError: unknown format or compression.
@@ -152,7 +168,10 @@ class BagRecorder:
         flush_period_s: float = 0.5,
         node_name: str = "visnav_bag_recorder",
         buffer_bytes: int = DEFAULT_BUFFER_BYTES,
+        topic_log_level: int = logging.INFO,
+        image_transport: ImageCompression | None = None,
     ) -> None:
+        self._topic_log_level = topic_log_level
         self.fmt, self.compression = check_format(fmt, compression)
         if self.fmt not in ("mcap", "ros1"):
             msg = f"recording format {fmt!r}: expected 'mcap' or 'ros1' (convert afterwards)"
@@ -181,6 +200,9 @@ class BagRecorder:
         self._subs: list[Subscription[Any]] = []
         self._graph_version = -1
         self._skipped: set[str] = set()
+        self.image_transport = image_transport
+        self._stored_as: dict[str, str] = {}  # subscribed image topic -> stored topic
+        self._offered: dict[str, list[Any]] = {}  # image topic -> publishers' QoS
         self.topics: dict[str, RecordedTopic] = {}
         self.error: BaseException | None = None
         """The write error that stopped the recording (None while all is well)."""
@@ -221,7 +243,8 @@ class BagRecorder:
         for sub in self._subs:
             n = sub.dropped
             if n:
-                out[sub.topic_name] = out.get(sub.topic_name, 0) + n
+                name = self._stored_as.get(sub.topic_name, sub.topic_name)
+                out[name] = out.get(name, 0) + n
         for name, rec in self.topics.items():
             handle = self._handles.get(name)
             rec.buffer_drops = 0 if handle is None else queue_drops.get(handle, 0)
@@ -273,6 +296,10 @@ class BagRecorder:
             queue.close()
             self.error = queue.error
             drops = self.drops()
+            names = {h: n for n, h in self._handles.items()}
+            for handle, text in queue.job_errors.items():
+                name = names.get(handle, "?")
+                _LOG.warning("'%s': %d image(s) not stored: %s", name, drops.get(name, 0), text)
         writer.set_drops(drops)
         try:
             writer.close()
@@ -339,7 +366,7 @@ class BagRecorder:
         if version == self._graph_version:
             return
         self._graph_version = version
-        taken = self.topics.keys() | self._skipped
+        taken = self.topics.keys() | self._skipped | self._offered.keys()
         for found in new_published_topics(self.context, taken, include_hidden=True):
             topic, types = found.name, found.types
             if not self._selected(topic):
@@ -368,6 +395,13 @@ class BagRecorder:
         offered = [endpoint_qos(e) for e in pubs]
         if self._queue is None:  # pragma: no cover - start() sets it
             return
+        if self.image_transport is not None and type_name == IMAGE:
+            self._offered[topic] = offered
+            callback = self._image_callback(topic, qos.short())
+            self._subs.append(node.create_subscription(cls, topic, callback, qos, raw=True))
+            text = f"recording '{topic}' through a compressed transport ({qos.short()})"
+            node.get_logger().log(text, self._topic_log_level)
+            return
         with self._queue.writer_lock:  # the writer thread may be writing
             handle = self._writer.add_topic(topic, type_name, qos=offered)
         self._handles[topic] = handle
@@ -375,7 +409,70 @@ class BagRecorder:
         self.topics[topic] = rec
         callback = self._callback(rec, handle)
         self._subs.append(node.create_subscription(cls, topic, callback, qos, raw=True))
-        node.get_logger().info(f"recording '{topic}' ({type_name}, {qos.short()})")
+        text = f"recording '{topic}' ({type_name}, {qos.short()})"
+        node.get_logger().log(text, self._topic_log_level)
+
+    def _stamp(self, info: MessageInfo | None) -> tuple[int, int]:
+        """(record time, publish time) of a message received now."""
+        if self.use_sim_time and self._node is not None:
+            t = self._node.get_clock().now_ns()
+            return t, t
+        if info is not None:
+            return info.received_timestamp_ns, info.source_timestamp_ns
+        t = time.time_ns()
+        return t, t
+
+    def _image_callback(
+        self, topic: str, qos: str
+    ) -> Callable[[SerializedMessage, MessageInfo | None], None]:
+        """Callback of an Image topic stored through a compressed transport."""
+        policy = self.image_transport
+        state: dict[str, Any] = {}  # transport, handle, rec once the first message came
+
+        def on_message(msg: SerializedMessage, info: MessageInfo | None) -> None:
+            queue, writer = self._queue, self._writer
+            if writer is None or queue is None or policy is None:
+                return
+            data = msg.to_bytes()
+            if not state:
+                try:
+                    encoding = str(msg.deserialize().encoding)
+                except ValueError as exc:
+                    if self._node is not None:
+                        self._node.get_logger().warning(f"not recording '{topic}': {exc}")
+                    return
+                transport = policy.transport_for(encoding)
+                stored = policy.topic(topic, transport)
+                type_name = IMAGE if transport == "raw" else "sensor_msgs/msg/CompressedImage"
+                with queue.writer_lock:
+                    handle = writer.add_topic(stored, type_name, qos=self._offered.get(topic, []))
+                rec = RecordedTopic(stored, type_name, qos=qos)
+                self.topics[stored] = rec
+                self._handles[stored] = handle
+                self._stored_as[topic] = stored
+                state.update(transport=transport, handle=handle, rec=rec)
+                if self._node is not None:
+                    how = "raw: not compressible" if transport == "raw" else transport
+                    text = f"recording '{topic}' ({encoding}) as '{stored}' ({how})"
+                    self._node.get_logger().log(text, self._topic_log_level)
+            handle, rec, transport = state["handle"], state["rec"], state["transport"]
+            t, pub = self._stamp(info)
+            if not 0 <= t < writer.max_time_ns:
+                queue.dropped[handle] = queue.dropped.get(handle, 0) + 1
+                return
+            pub = pub if pub >= 0 else t
+            if transport == "raw":
+                ok = queue.put(handle, t, data, pub)
+            else:
+
+                def job(data: bytes = data) -> bytes:
+                    return policy.encode_cdr(memoryview(data), transport)
+
+                ok = queue.put_job(handle, t, job, pub, size=len(data))
+            if ok:
+                rec.count += 1
+
+        return on_message
 
     def _callback(
         self, rec: RecordedTopic, handle: int

@@ -8,6 +8,11 @@ new messages are dropped and counted per topic, never silently. The last sixteen
 buffer is kept for small messages (up to 64 KiB), so that while images are being dropped,
 ``/clock``, TF, odometry and the like are still recorded.
 
+A message may also be queued as a job (:meth:`WriteQueue.put_job`): a function run on the
+writer thread that returns the bytes to write (the recorder compresses images this way, off
+the executor's thread). A job that raises ``ValueError`` drops that message (counted, the
+first error kept in :attr:`WriteQueue.job_errors`); the recording goes on.
+
 The thread wakes every ``wake_period_s`` (20 ms) and writes what arrived meanwhile, or at
 once when ``wake_bytes`` are waiting, rather than on every message: the car's recorder gets
 ~1,000 messages per simulated second (``/clock`` at 500 Hz), and waking the thread for each
@@ -23,6 +28,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 
 from visnav.bag.errors import BagError
 from visnav.bag.writer import BagWriter
@@ -38,7 +44,8 @@ SMALL_MESSAGE_BYTES = 64 << 10
 WAKE_BYTES = 4 << 20
 """Bytes waiting that wake the writer thread before its period ends."""
 
-_Item = tuple[int, int, bytes, int]  # handle, record time, data, publish time
+_Job = Callable[[], bytes]
+_Item = tuple[int, int, "bytes | _Job", int, int]  # handle, record time, data, publish, size
 
 
 class WriteQueue:
@@ -69,6 +76,8 @@ class WriteQueue:
         self.dropped: dict[int, int] = {}
         """Messages dropped per topic handle (buffer full, or after a write error)."""
         self.written = 0
+        self.job_errors: dict[int, str] = {}
+        """Per topic handle, the first error of a job that dropped its message."""
         self.peak_bytes = 0
         self.last_flush_monotonic = time.monotonic()
         self._items: deque[_Item] = deque()
@@ -94,7 +103,24 @@ class WriteQueue:
 
     def put(self, handle: int, t_ns: int, data: bytes, publish_ns: int) -> bool:
         """Queue one message; return False when it was dropped (counted in :attr:`dropped`)."""
-        size = len(data)
+        return self._put(handle, t_ns, data, publish_ns, len(data))
+
+    def put_job(self, handle: int, t_ns: int, job: _Job, publish_ns: int, *, size: int) -> bool:
+        """Queue a message made on the writer thread by ``job()`` (see the module docstring).
+
+        Args:
+            handle: the topic handle.
+            t_ns: record time.
+            job: returns the serialized message; a ``ValueError`` drops it.
+            publish_ns: publish time.
+            size: bytes the job holds while it waits (counted against the buffer).
+
+        Returns:
+            False when the message was dropped at once (buffer full, closing, failed).
+        """
+        return self._put(handle, t_ns, job, publish_ns, size)
+
+    def _put(self, handle: int, t_ns: int, data: bytes | _Job, publish_ns: int, size: int) -> bool:
         limit = self.max_bytes if size <= SMALL_MESSAGE_BYTES else self.max_bytes * 15 // 16
         with self._cond:
             if (
@@ -104,7 +130,7 @@ class WriteQueue:
             ):
                 self.dropped[handle] = self.dropped.get(handle, 0) + 1
                 return False
-            self._items.append((handle, t_ns, data, publish_ns))
+            self._items.append((handle, t_ns, data, publish_ns, size))
             self._bytes += size
             self.peak_bytes = max(self.peak_bytes, self._bytes)
             if self._bytes >= WAKE_BYTES:  # else the thread's period picks it up
@@ -137,6 +163,16 @@ class WriteQueue:
             self._bytes = 0
             self._cond.notify()
 
+    def _run_job(self, handle: int, job: _Job) -> bytes | None:
+        """The job's bytes, or None (dropped and counted) when it raised ValueError."""
+        try:
+            return job()
+        except ValueError as exc:
+            with self._cond:
+                self.dropped[handle] = self.dropped.get(handle, 0) + 1
+                self.job_errors.setdefault(handle, str(exc))
+            return None
+
     def _drop(self, items: list[_Item]) -> None:
         for item in items:
             self.dropped[item[0]] = self.dropped.get(item[0], 0) + 1
@@ -162,16 +198,18 @@ class WriteQueue:
                 closing = self._closing
             done = 0
             try:
-                for handle, t_ns, data, publish_ns in batch:
+                for handle, t_ns, data, publish_ns, _size in batch:
                     if self._abandon:
                         with self._cond:
                             self._drop(batch[done:])
                         break
-                    with self.writer_lock:
-                        writer.write(handle, t_ns, data, publish_ns=publish_ns)
+                    payload = data if isinstance(data, bytes) else self._run_job(handle, data)
+                    if payload is not None:
+                        with self.writer_lock:
+                            writer.write(handle, t_ns, payload, publish_ns=publish_ns)
+                        self.written += 1
                     done += 1
-                    self.written += 1
-                written_bytes = sum(len(item[2]) for item in batch[:done])
+                written_bytes = sum(item[4] for item in batch[:done])
                 with self._cond:  # once per batch: the executor's put takes this lock too
                     self._bytes = max(0, self._bytes - written_bytes)
                 if flush and not closing:

@@ -48,6 +48,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--include-hidden-topics", action="store_true", help="with -a: also _hidden")
     p.add_argument("--use-sim-time", action="store_true", help="stamp with /clock time")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    p.add_argument(
+        "--compress-images",
+        action="store_true",
+        help="store sensor_msgs/Image topics as <topic>/compressed (JPEG) and depth as "
+        "<topic>/compressedDepth (PNG), as image_transport publishes them (visnav run "
+        "--record-images does this)",
+    )
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("info", help="summarise a bag")
@@ -72,6 +79,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--topics", nargs="+", default=None, help="play only these topics")
     p.add_argument("--remap", nargs="+", default=None, metavar="FROM:=TO", help="rename topics")
     p.add_argument("--delay", type=float, default=0.0, help="wait S seconds before playing")
+    p.add_argument(
+        "--decompress",
+        action="store_true",
+        help="also publish <topic>/compressed and /compressedDepth images decoded on <topic> "
+        "(sensor_msgs/Image, for raw subscribers: image_transport republish)",
+    )
     p.set_defaults(func=cmd_play)
 
     p = sub.add_parser("convert", help="write a bag in another format")
@@ -128,6 +141,7 @@ class _StopFlag:
 
 def cmd_record(args: argparse.Namespace) -> int:
     """``bag record``."""
+    from visnav.bag.image_compression import ImageCompression
     from visnav.bag.recorder import BagRecorder, compile_exclude
     from visnav.bag.writer import format_for_output
     from visnav.graph.context import Context
@@ -155,6 +169,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             include_hidden=args.include_hidden_topics,
             use_sim_time=args.use_sim_time,
             buffer_bytes=round(args.buffsize * (1 << 20)),
+            image_transport=ImageCompression() if args.compress_images else None,
         )
         recorder.start()
         try:
@@ -216,6 +231,7 @@ def cmd_play(args: argparse.Namespace) -> int:
             topics=args.topics,
             remap=args.remap,
             delay_s=args.delay,
+            decompress=args.decompress,
         )
         wait_for_discovery(ctx, timeout_s=1.0)
         print(f"Playing '{player.path}' (Ctrl-C to stop)", flush=True)

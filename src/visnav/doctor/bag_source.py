@@ -4,6 +4,12 @@ A bag has no graph: checks that need subscriptions are skipped, and the publishe
 offered QoS comes from the bag's metadata. Record times are receive times (wall clock,
 or ``/clock`` time for a recorder with ``use_sim_time``); ``/clock`` in the bag maps
 them to ROS time as live.
+
+Images recorded through image_transport's compressed transports (``<topic>/compressed``,
+``<topic>/compressedDepth``, as ``visnav run --record-images`` stores them) are observed as
+an image_transport subscriber sees them: as the ``sensor_msgs/Image`` topic ``<topic>``, its
+sampled frames decoded, so the image, depth and camera_info checks run on them (unless the
+raw topic itself is in the bag too; then the compressed one is observed as it is).
 """
 
 from __future__ import annotations
@@ -12,6 +18,7 @@ import struct
 from pathlib import Path
 
 from visnav.bag.errors import CorruptBagError
+from visnav.bag.image_compression import IMAGE, decode_image, image_topics
 from visnav.bag.qos import playback_qos
 from visnav.bag.reader import BagReader
 from visnav.doctor.builder import HEAVY_TYPES, ObservationBuilder, SamplingPolicy
@@ -76,9 +83,17 @@ def observe_bag(
     builder = ObservationBuilder(source="bag", label=f"bag {path}", policy=policy)
     with BagReader(path) as reader:
         topics = reader.topics
+        as_image = {
+            stored: base
+            for base, stored in image_topics((n, m.type_name) for n, m in topics.items()).items()
+            if stored != base
+        }
         for name, meta in topics.items():
             profiles = [playback_qos([q]) for q in meta.qos]
-            builder.declare_topic(name, meta.type_name, qos=profiles)
+            shown, type_name = (
+                (as_image[name], IMAGE) if name in as_image else (name, meta.type_name)
+            )
+            builder.declare_topic(shown, type_name, qos=profiles)
         stop = None
         if duration_s is not None and reader.start_ns:
             stop = reader.start_ns + round(duration_s * 1e9)
@@ -86,20 +101,23 @@ def observe_bag(
         for raw in reader.raw_messages(stop_ns=stop):
             if raw.topic in broken:
                 continue
-            if raw.type_name in HEAVY_TYPES and not builder.wants_sample(
-                raw.topic, raw.type_name, raw.t_ns
-            ):
+            name, type_name = raw.topic, raw.type_name
+            if name in as_image:
+                name, type_name = as_image[name], IMAGE
+            if type_name in HEAVY_TYPES and not builder.wants_sample(name, type_name, raw.t_ns):
                 header = read_header(raw.data, ros1=reader.is_ros1)
                 if header is not None:
-                    builder.add_header(raw.topic, raw.type_name, raw.t_ns, *header)
+                    builder.add_header(name, type_name, raw.t_ns, *header)
                     continue
             try:
-                msg = reader.decode(raw)
-            except CorruptBagError:
+                message = reader.decode(raw)
+                if name != raw.topic:
+                    message = decode_image(message)
+            except (CorruptBagError, ValueError):
                 broken.add(raw.topic)
-                builder.mark_undecodable(raw.topic, raw.type_name)
+                builder.mark_undecodable(name, type_name)
                 continue
-            builder.add(raw.topic, raw.type_name, raw.t_ns, msg)
+            builder.add(name, type_name, raw.t_ns, message)
         if reader.start_ns or reader.end_ns:
             end = reader.end_ns if stop is None else min(reader.end_ns, stop)
             builder.set_window(reader.start_ns, end)

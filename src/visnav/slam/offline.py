@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from visnav.bag import BagReader
+from visnav.bag.image_compression import decode_image, image_topics
 from visnav.message_filters import ApproximateTime
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.time import time_to_ns
@@ -292,6 +293,12 @@ def slam_bag(
 ) -> SlamRun:
     """Run RGB-D SLAM on the image, depth and camera_info topics of a bag.
 
+    Images recorded through image_transport's compressed transports are read as an
+    image_transport subscriber does: when ``image_topic`` (``depth_topic``) is not in the
+    bag but ``<topic>/compressed`` (``<topic>/compressedDepth``) is, that topic is read
+    and decoded (what ``visnav run --record-images`` stores); a transport topic may also
+    be named directly.
+
     Args:
         path: the bag.
         image_topic: rectified colour or mono images.
@@ -333,6 +340,9 @@ def slam_bag(
                 "use scale from depth"
             )
             raise SlamInputError(text)
+        stored = image_topics((n, m.type_name) for n, m in topics.items())
+        image_topic = stored.get(image_topic, image_topic)
+        depth_topic = stored.get(depth_topic, depth_topic)
         for name, what in (
             (image_topic, "image"),
             (depth_topic, "depth"),
@@ -375,10 +385,13 @@ def slam_bag(
                     base_frame = str(msg.child_frame_id) or "base_link"
             elif topic == info_topic:
                 state["info"] = msg
-            elif topic == image_topic:
-                sync.add(0, msg)
-            elif topic == depth_topic:
-                sync.add(1, msg)
+            elif topic in (image_topic, depth_topic):
+                try:
+                    frame = decode_image(msg)
+                except ValueError as exc:  # one undecodable compressed frame: skip it
+                    log.warning("%s: skipped a frame: %s", topic, exc)
+                    continue
+                sync.add(0 if topic == image_topic else 1, frame)
             while pending:
                 img, dep = pending.pop(0)
                 if state["info"] is None:
