@@ -1,0 +1,166 @@
+"""gmapping's time per update: 30 particles, 360 beams, a TurtleBot3 loop in turtlebot3_world.
+
+Runs :class:`visnav.mapping.gmapping.GmappingFilter` (TurtleBot3's gmapping_params.yaml
+with 30 particles) over the recorded drive in tests/mapping/gmapping/data, and prints:
+
+* the median wall time of a processed update (motion, scan matching of every particle,
+  weights, resampling, map registration), with 1 and with all numba threads;
+* the scan matching of the same scans by a plain per-particle Python loop
+  (:mod:`visnav.mapping.gmapping.reference`), on copies of the filter's state at a few
+  updates, and the ratio (the outputs are checked equal);
+* the map rebuild time (slam_gmapping's updateMap) and the particle maps' memory.
+
+Run: ``python bench/bench_gmapping.py [--reference-updates N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import itertools
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+
+from visnav.mapping.gmapping import GmappingFilter, GmappingParams, LaserGeometry
+from visnav.mapping.gmapping import _scan_kernels as k
+from visnav.mapping.gmapping.reference import scan_match_py
+
+FIXTURE = Path(__file__).resolve().parent.parent / "tests/mapping/gmapping/data/tb3_world_loop.npz"
+TB3 = {
+    "maxUrange": 3.0, "sigma": 0.05, "kernelSize": 1, "lstep": 0.05, "astep": 0.05,
+    "iterations": 5, "lsigma": 0.075, "ogain": 3.0, "lskip": 0, "minimumScore": 50.0,
+    "srr": 0.1, "srt": 0.2, "str": 0.1, "stt": 0.2, "linearUpdate": 1.0, "angularUpdate": 0.2,
+    "temporalUpdate": 0.5, "resampleThreshold": 0.5, "particles": 30, "xmin": -10.0,
+    "ymin": -10.0, "xmax": 10.0, "ymax": 10.0, "delta": 0.05,
+}  # fmt: skip
+
+
+def _odometry(truth: np.ndarray) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    odo = truth[0].copy()
+    out = [odo.copy()]
+    for a, b in itertools.pairwise(truth):
+        c, s = math.cos(a[2]), math.sin(a[2])
+        dx = c * (b[0] - a[0]) + s * (b[1] - a[1])
+        dy = -s * (b[0] - a[0]) + c * (b[1] - a[1])
+        dx2 = dx * 1.02 + rng.normal(0, 0.002)
+        dt2 = (b[2] - a[2]) * 1.03 + 0.01 * abs(dx) + rng.normal(0, 0.002)
+        c, s = math.cos(odo[2]), math.sin(odo[2])
+        odo = odo + np.array([c * dx2 - s * dy, s * dx2 + c * dy, dt2])
+        out.append(odo.copy())
+    return np.array(out)
+
+
+class _Capturing(GmappingFilter):
+    """The filter, keeping copies of the scan matcher's inputs at chosen updates."""
+
+    capture: frozenset[int] = frozenset()
+    snaps: list[Any]
+
+    def _scan_match(self, ranges: np.ndarray) -> None:
+        if self.count in self.capture:
+            self.snaps.append((copy.deepcopy(self.maps), self.poses.copy(), ranges.copy()))
+        super()._scan_match(ranges)
+
+
+def _run(
+    d: Any, capture: frozenset[int] = frozenset()
+) -> tuple[list[float], list[float], _Capturing]:
+    p = GmappingParams(**TB3)  # type: ignore[arg-type]
+    t = d["T_base_laser"]
+    n = d["ranges"].shape[1]
+    laser = LaserGeometry(
+        x=float(t[0, 3]), y=float(t[1, 3]),
+        angles=float(d["angle_min"]) + float(d["angle_increment"]) * np.arange(n),
+        max_range=float(d["range_max"]) - 0.01, usable_range=p.maxUrange,
+    )  # fmt: skip
+    odo = _odometry(d["truth"])
+    f = _Capturing(p, laser, initial_pose=tuple(odo[0]))
+    f.capture = capture
+    f.snaps = []
+    times: list[float] = []
+    cpu: list[float] = []
+    ranges = d["ranges"].astype(np.float64)
+    for i in range(len(ranges)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        done = f.process_scan(tuple(odo[i]), ranges[i], float(d["stamps"][i]))
+        if done and f.count > 1:
+            times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+    return times, cpu, f
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--reference-updates", type=int, default=2)
+    ap.add_argument("--runs", type=int, default=2, help="filter runs per thread count")
+    args = ap.parse_args()
+    d = dict(np.load(FIXTURE))
+    print(f"fixture: {len(d['stamps'])} scans x {d['ranges'].shape[1]} beams, 30 particles")
+    print(f"load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores "
+          f"(numba threads {numba.get_num_threads()}, layer after first run below)")  # fmt: skip
+    _run(d)  # compile
+    print(f"numba threading layer: {numba.threading_layer()}")
+    results = {}
+    for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+        numba.set_num_threads(threads)
+        out = [_run(d) for _ in range(args.runs)]
+        wall = np.concatenate([o[0] for o in out])
+        cpu = np.concatenate([o[1] for o in out])
+        med = float(np.median(wall))
+        results[threads] = med
+        print(f"update, {threads} thread(s): median wall {1e3 * med:.1f} ms, CPU "
+              f"{1e3 * np.median(cpu):.1f} ms (all threads), p90 wall "
+              f"{1e3 * np.percentile(wall, 90):.1f} ms, over {len(out[0][0])} updates x "
+              f"{len(out)} runs")  # fmt: skip
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    capture = frozenset(range(10, 10 + 7 * args.reference_updates, 7))
+    _, _, f = _run(d, capture)
+    p = f.params
+    lz = f.laser
+    laser = np.array([lz.x, lz.y, 0.0])
+    compiled, python = [], []
+    snaps = f.snaps
+    for maps, poses, ranges in snaps:
+        out = np.empty_like(poses)
+        scores, like = np.empty(len(poses)), np.empty(len(poses))
+        t0 = time.perf_counter()
+        k.scan_match_all(
+            maps.tables, maps.accx, maps.accy, maps.hits, maps.visits, poses, ranges,
+            lz.angles, laser, lz.usable_range, p.sigma, p.lsigma, p.delta, maps.cx0, maps.cy0,
+            p.kernelSize, p.lskip, p.lstep, p.astep, p.iterations, p.minimumScore, out,
+            scores, like,
+        )  # fmt: skip
+        compiled.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        ref_poses, ref_like = scan_match_py(
+            maps, poses, ranges, lz.angles, (lz.x, lz.y, 0.0), usable=lz.usable_range,
+            sigma=p.sigma, lsigma=p.lsigma, minimum_score=p.minimumScore,
+            kernel=p.kernelSize, lskip=p.lskip, lstep=p.lstep, astep=p.astep,
+            iterations=p.iterations,
+        )  # fmt: skip
+        python.append(time.perf_counter() - t0)
+        assert np.allclose(ref_poses, out, atol=1e-12), "compiled and Python poses differ"
+        assert np.allclose(ref_like, like, rtol=1e-12), "compiled and Python weights differ"
+    mc, mp = float(np.median(compiled)), float(np.median(python))
+    print(f"scan matching of 30 particles (same scans, same map state, {len(snaps)} updates): "
+          f"compiled {1e3 * mc:.1f} ms, plain Python loop {1e3 * mp:.0f} ms, ratio {mp / mc:.0f}x")  # fmt: skip
+    t0 = time.perf_counter()
+    grid = f.build_map()
+    print(f"map rebuild (updateMap, {f.count} scans replayed, {grid.data.shape[1]} x "
+          f"{grid.data.shape[0]} cells): {1e3 * (time.perf_counter() - t0):.1f} ms")  # fmt: skip
+    print(f"particle maps: {f.maps.patches_in_use} patches in use, {f.maps.nbytes / 1e6:.1f} MB "
+          f"(30 private dense 20x20 m maps at 0.05 m would be {30 * 400 * 400 * 24 / 1e6:.0f} MB)")  # fmt: skip
+    best = min(results.values())
+    print(f"goal <= 10 ms median per update: {'met' if best <= 0.010 else 'NOT met'} "
+          f"({1e3 * best:.1f} ms wall; the load average above inflates wall times)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
