@@ -280,6 +280,7 @@ def test_a_visnav_status_topic_of_the_same_name_stays_out(graphs: _Graphs) -> No
     graphs.connect_client()
     graphs.send_goal("goal-2", 1.0)
     assert graphs.spin_until(lambda: graphs.results("goal-2") != [])
+
     def seen_goal() -> bool:
         return any(s.goal_id.id == "goal-2" for m in graphs.got["status"] for s in m.status_list)
 
@@ -419,7 +420,7 @@ class _Processes:
         self.procs.append(
             subprocess.Popen(
                 argv, env=self.env, stdout=log, stderr=subprocess.STDOUT, text=True,
-                start_new_session=True,
+                start_new_session=True, cwd=self.tmp,
             )
         )  # fmt: skip
 

@@ -23,10 +23,10 @@ from visnav.msgs import Odometry
 TB3 = Path(__file__).resolve().parents[1] / "data" / "turtlebot3"
 
 
-def _launch(domain: int, *args: str, **env: str) -> subprocess.Popen[str]:
+def _launch(domain: int, cwd: Path, *args: str, **env: str) -> subprocess.Popen[str]:
     cmd = [sys.executable, "-m", "visnav.cli.main", "launch", *args]
     full_env = {**os.environ, "VISNAV_DOMAIN": str(domain), **env}
-    return subprocess.Popen(cmd, env=full_env, text=True, stderr=subprocess.PIPE)
+    return subprocess.Popen(cmd, env=full_env, cwd=cwd, text=True, stderr=subprocess.PIPE)
 
 
 @pytest.mark.slow
@@ -36,11 +36,12 @@ def _launch(domain: int, *args: str, **env: str) -> subprocess.Popen[str]:
     [("car", "/odom", 25.0), ("drone", "/drone/odom", 15.0), ("turtlebot3", "/odom", 5.0)],
 )
 def test_a_healthy_stack_has_no_warning(
-    domain: int, stack: str, odometry: str, settle_s: float
+    domain: int, stack: str, odometry: str, settle_s: float, tmp_path: Path
 ) -> None:
     if stack == "turtlebot3":
         proc = _launch(
             domain,
+            tmp_path,
             str(TB3 / "turtlebot3_gazebo" / "launch" / "turtlebot3_world.launch"),
             "--package",
             f"turtlebot3_description={TB3 / 'turtlebot3_description'}",
@@ -50,7 +51,7 @@ def test_a_healthy_stack_has_no_warning(
             GAZEBO_MODEL_PATH=str(TB3.parent / "gazebo_models"),
         )
     else:
-        proc = _launch(domain, stack, "duration:=300")
+        proc = _launch(domain, tmp_path, stack, "duration:=300")
     try:
         with Context(domain) as ctx:
             node = Node("wait_for_odometry", context=ctx)

@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -13,12 +14,13 @@ import pytest
 @pytest.mark.slow
 @pytest.mark.ci
 @pytest.mark.timeout(600)
-def test_send_goal_drives_the_launched_car_to_succeeded(domain: int) -> None:
+def test_send_goal_drives_the_launched_car_to_succeeded(domain: int, tmp_path: Path) -> None:
     env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
     args = ["mission:=false", "slam:=false", "ideal_sensors:=true", "duration:=300.0"]
     launch = subprocess.Popen(
         [sys.executable, "-m", "visnav.cli.main", "launch", "car", *args],
         env=env,
+        cwd=tmp_path,  # its runs/<time> folder
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,

@@ -378,7 +378,7 @@ def _damped_step(
 def _adjoint(t: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """(6, 6) adjoint of a transform for twists ``(rho, phi)``: ``[[R, [t]x R], [0, R]]``."""
     out = np.zeros((6, 6))
-    r = t[:3, :3]
+    r = np.ascontiguousarray(t[:3, :3])
     tx = np.zeros((3, 3))
     tx[0, 1], tx[0, 2], tx[1, 0] = -t[2, 3], t[1, 3], t[2, 3]
     tx[1, 2], tx[2, 0], tx[2, 1] = -t[0, 3], -t[1, 3], t[0, 3]
@@ -423,9 +423,9 @@ def _edge_error(
     ``Z`` is the measured pose of camera ``b`` in camera ``a``'s frame; ``T`` are ``T_cw``.
     """
     inv_b = np.eye(4)
-    rt = pose_b[:3, :3].T
+    rt = np.ascontiguousarray(pose_b[:3, :3].T)  # contiguous: numba's '@' warns otherwise
     inv_b[:3, :3] = rt
-    inv_b[:3, 3] = -(rt @ pose_b[:3, 3])
+    inv_b[:3, 3] = -(rt @ np.ascontiguousarray(pose_b[:3, 3]))
     e = z_inv @ pose_a @ inv_b
     r = np.empty(6)
     r[0], r[1], r[2] = e[0, 3], e[1, 3], e[2, 3]

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from visnav.logsetup import configure_logging, kernel_compilation_notice
 from visnav.slam.camera import CameraIntrinsics
 from visnav.slam.config import SlamConfig, TrackResult
 from visnav.slam.errors import SlamError
@@ -445,6 +446,10 @@ class ProcessWorker(SlamWorker):
                 pass_fds=(child.fileno(),) if slot_fd < 0 else (child.fileno(), slot_fd),
                 stdin=subprocess.DEVNULL,
                 env=env,
+                # out of the terminal's process group: a Ctrl-C is the parent's to handle,
+                # even while this interpreter starts (before it can ignore SIGINT); the
+                # worker ends when the parent's socket closes
+                start_new_session=True,
             )
         except OSError as exc:
             parent.close()
@@ -459,6 +464,7 @@ class ProcessWorker(SlamWorker):
             child.close()
         self._conn = Connection(parent.detach())
         self._closed = False
+        self._broken = ""  # why the connection is out of step (an interrupted wait)
         self._received: deque[WorkerResult] = deque()
         try:
             init = (
@@ -476,16 +482,24 @@ class ProcessWorker(SlamWorker):
             raise
 
     def _answer(self, what: str, *, timeout_s: float | None = None) -> Any:
-        if timeout_s is not None and not self._conn.poll(timeout_s):
-            self.close()
-            text = f"SLAM worker process did not answer {what} within {timeout_s:.0f} s"
+        if self._broken:
+            text = f"SLAM worker connection unusable ({self._broken}): no answer to {what}"
             raise SlamWorkerError(text)
         try:
+            if timeout_s is not None and not self._conn.poll(timeout_s):
+                self.close()
+                text = f"SLAM worker process did not answer {what} within {timeout_s:.0f} s"
+                raise SlamWorkerError(text)
             status, value = self._conn.recv()
         except (EOFError, OSError) as exc:
             code = self._proc.poll()
             text = f"SLAM worker process ended (exit code {code}) during {what}: {exc!r}"
             raise SlamWorkerError(text) from None
+        except (KeyboardInterrupt, SystemExit):
+            # the answer (or the rest of it) is still on its way: a later read would take
+            # it for the answer to another request
+            self._broken = f"interrupted while waiting for {what}"
+            raise
         if status == "error":
             text = f"SLAM worker process failed during {what}: {value}"
             raise SlamWorkerError(text)
@@ -530,10 +544,11 @@ class ProcessWorker(SlamWorker):
         if self.in_flight <= 0:
             text = "no SLAM frame in flight: submit one before asking for its result"
             raise SlamWorkerError(text)
-        self.in_flight -= 1
         if self._received:
+            self.in_flight -= 1
             return self._received.popleft()
         out: WorkerResult = self._answer("tracking")
+        self.in_flight -= 1  # only once received: an interrupted wait leaves it in flight
         self._release()
         return out
 
@@ -629,8 +644,12 @@ def _main(argv: list[str]) -> int:
         slot_bytes = int(argv[3])
         size = os.fstat(int(argv[2])).st_size
         slots = FrameSlots(slot_bytes, size // slot_bytes, fd=int(argv[2]))
+    configure_logging()  # as the visnav command: [LEVEL] lines, library warnings at debug
     try:
-        _serve(Connection(int(argv[1])), slots)
+        with kernel_compilation_notice(
+            "compiling the SLAM kernels (first run only, about a minute)"
+        ):
+            _serve(Connection(int(argv[1])), slots)
     finally:
         if slots is not None:
             slots.close()

@@ -30,13 +30,16 @@ SUCCEEDED = 3
 @pytest.mark.slow
 @pytest.mark.ci
 @pytest.mark.timeout(600)
-def test_foxglove_goal_drives_the_launched_car_to_succeeded(js_client: Path, domain: int) -> None:
+def test_foxglove_goal_drives_the_launched_car_to_succeeded(
+    js_client: Path, domain: int, tmp_path: Path
+) -> None:
     env = {**os.environ, "VISNAV_DOMAIN": str(domain)}
     args = ["mission:=false", "slam:=false", "ideal_sensors:=true", "duration:=300.0"]
     procs = [
         subprocess.Popen(
             [sys.executable, "-m", "visnav.cli.main", "launch", "car", *args],
             env=env,
+            cwd=tmp_path,  # its runs/<time> folder
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
