@@ -8,24 +8,76 @@ Run: ``python bench/bench_services.py``. Prints medians and p99 of the round tri
   the reference measured in the same run, a raw Zenoh ``get`` to a bare queryable in the
   same child that replies the same bytes (the ratio is visnav / raw; goal <= 1.3);
 
+* against real ROS 1 (Debian's ``roscore`` and the system ``/usr/bin/python3`` with rospy
+  and std_srvs): a ``rospy.ServiceProxy`` calling a rospy ``SetBool`` service in another
+  process, non-persistent (rospy's default: a new TCPROS connection and a master lookup
+  per call) and ``persistent=True``, measured in the same run, interleaved with the visnav
+  runs; the ratio is visnav cross-process / rospy (goal <= 0.5). The roscore listens on a
+  free loopback port with its own ``ROS_HOME``; every ROS process is stopped at the end.
+  Skipped (with a line saying so) when ROS 1 is not installed, or with ``--no-rospy``;
+
 and the cost of creating a node with and without its six parameter services, in a
 local-only context and with Zenoh. Each run uses its own private domain.
 """
 
 from __future__ import annotations
 
+import argparse
+import contextlib
+import json
 import os
+import shutil
+import signal
+import socket
 import statistics
 import subprocess
 import sys
+import tempfile
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 N_CALLS = 2000
 N_NODES = 200
 REPEATS = 3
 _RAW_KEY = "raw_bench/queryable"
+SYSTEM_PYTHON = "/usr/bin/python3"
+ROSCORE = "/usr/bin/roscore"
+
+ROSPY_SERVER = """
+import sys
+import rospy
+from std_srvs.srv import SetBool, SetBoolResponse
+rospy.init_node("bench_rospy_server", disable_signals=True)
+rospy.Service("/bench/rospy_set", SetBool, lambda req: SetBoolResponse(bool(req.data), "ok"))
+print("ready", flush=True)
+sys.stdin.read()  # until the benchmark closes our stdin
+rospy.signal_shutdown("done")
+"""
+
+ROSPY_CLIENT = """
+import json, sys, time
+import rospy
+from std_srvs.srv import SetBool
+n, block = int(sys.argv[1]), int(sys.argv[2])
+rospy.init_node("bench_rospy_client", anonymous=True, disable_signals=True)
+rospy.wait_for_service("/bench/rospy_set", timeout=30.0)
+plain = rospy.ServiceProxy("/bench/rospy_set", SetBool)
+persistent = rospy.ServiceProxy("/bench/rospy_set", SetBool, persistent=True)
+for _ in range(50):
+    assert plain(True).success and persistent(True).success
+out = {"plain": [], "persistent": []}
+for _ in range(n // block):
+    for name, proxy in (("plain", plain), ("persistent", persistent)):
+        for _ in range(block):
+            t = time.perf_counter()
+            proxy(True)
+            out[name].append(time.perf_counter() - t)
+persistent.close()
+print(json.dumps(out), flush=True)
+rospy.signal_shutdown("done")
+"""
 
 
 def _stats(samples_s: list[float]) -> tuple[float, float]:
@@ -175,13 +227,149 @@ def bench_node_creation(kind: str, n: int = N_NODES) -> dict[str, float]:
     return out
 
 
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _master_up(port: int) -> bool:
+    import xmlrpc.client
+
+    proxy = xmlrpc.client.ServerProxy(f"http://127.0.0.1:{port}/")
+    try:
+        code, _, _ = proxy.getPid("/bench")
+    except OSError:
+        return False
+    return bool(code == 1)
+
+
+class Ros1:
+    """A private roscore and a rospy SetBool server; :meth:`close` stops every process."""
+
+    def __init__(self) -> None:
+        self.tmp = Path(tempfile.mkdtemp(prefix="bench_services_ros1_"))
+        self.port = _free_port()
+        self.env = {
+            **os.environ,
+            "ROS_MASTER_URI": f"http://127.0.0.1:{self.port}/",
+            "ROS_IP": "127.0.0.1",
+            "ROS_HOME": str(self.tmp),
+            "ROS_LOG_DIR": str(self.tmp / "log"),
+            "PYTHONPATH": "",
+        }
+        self.procs: list[subprocess.Popen[str]] = []
+
+    def _start(self, argv: list[str], **kwargs: Any) -> subprocess.Popen[str]:
+        # own session (process group): roscore's rosmaster and rosout are stopped with it
+        proc = subprocess.Popen(
+            argv,
+            env=self.env,
+            text=True,
+            start_new_session=True,
+            cwd=self.tmp,
+            stderr=subprocess.DEVNULL,
+            **kwargs,
+        )
+        self.procs.append(proc)
+        return proc
+
+    def start(self) -> None:
+        """Start roscore and the rospy server; raise RuntimeError when they do not come up."""
+        self._start([ROSCORE, "-p", str(self.port)], stdout=subprocess.DEVNULL)
+        deadline = time.monotonic() + 30.0
+        while not _master_up(self.port):
+            if time.monotonic() > deadline or self.procs[0].poll() is not None:
+                msg = f"roscore did not start on 127.0.0.1:{self.port}"
+                raise RuntimeError(msg)
+            time.sleep(0.2)
+        server = self._start(
+            [SYSTEM_PYTHON, "-c", ROSPY_SERVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE
+        )
+        assert server.stdout is not None
+        if server.stdout.readline().strip() != "ready":
+            msg = "the rospy server did not start"
+            raise RuntimeError(msg)
+
+    def calls(self, n: int, block: int = 100) -> dict[str, tuple[float, float]]:
+        """N non-persistent and N persistent rospy calls (interleaved in blocks): ms median, p99."""
+        client = self._start(
+            [SYSTEM_PYTHON, "-c", ROSPY_CLIENT, str(n), str(block)], stdout=subprocess.PIPE
+        )
+        try:
+            out, _ = client.communicate(timeout=600)
+        finally:
+            self._stop(client)
+        if client.returncode != 0 or not out.strip():
+            msg = f"the rospy client failed (exit {client.returncode})"
+            raise RuntimeError(msg)
+        samples = json.loads(out.strip().splitlines()[-1])
+        return {name: _stats(values) for name, values in samples.items()}
+
+    @staticmethod
+    def _stop(proc: subprocess.Popen[str]) -> None:
+        if proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        # children left in the group (rosmaster, rosout after roscore's exit)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+
+    def close(self) -> None:
+        """Stop every process (server, then roscore) and remove the ROS_HOME."""
+        for proc in reversed(self.procs):
+            if proc.stdin is not None:
+                with contextlib.suppress(OSError):
+                    proc.stdin.close()
+            self._stop(proc)
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+def _ros1_missing() -> str | None:
+    if not (Path(ROSCORE).exists() and Path(SYSTEM_PYTHON).exists()):
+        return f"{ROSCORE} or {SYSTEM_PYTHON} is missing"
+    probe = subprocess.run(
+        [SYSTEM_PYTHON, "-c", "import rospy, std_srvs.srv"],
+        capture_output=True,
+        check=False,
+        env={**os.environ, "PYTHONPATH": ""},
+    )
+    return "rospy / std_srvs do not import in /usr/bin/python3" if probe.returncode else None
+
+
 def main() -> None:
     """Run every benchmark REPEATS times and print medians."""
-    local = [bench_in_process() for _ in range(REPEATS)]
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--calls", type=int, default=N_CALLS, help="calls per run")
+    parser.add_argument("--repeats", type=int, default=REPEATS, help="runs of each benchmark")
+    parser.add_argument("--no-rospy", action="store_true", help="skip the ROS 1 comparison")
+    args = parser.parse_args()
+    n, repeats = args.calls, args.repeats
+    print("load average (1, 5, 15 min) at the start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
+    local = [bench_in_process(n) for _ in range(repeats)]
     lm = statistics.median(m for m, _ in local)
     lp = statistics.median(p for _, p in local)
     print(f"in-process SetBool round trip: median {lm:.3f} ms, p99 {lp:.3f} ms")
-    cross = [bench_cross_process() for _ in range(REPEATS)]
+    missing = "--no-rospy" if args.no_rospy else _ros1_missing()
+    ros1 = None if missing else Ros1()
+    cross: list[dict[str, tuple[float, float]]] = []
+    rospy_runs: list[dict[str, tuple[float, float]]] = []
+    try:
+        if ros1 is not None:
+            ros1.start()
+        for _ in range(repeats):  # visnav and rospy runs interleaved
+            cross.append(bench_cross_process(n))
+            if ros1 is not None:
+                rospy_runs.append(ros1.calls(n))
+    finally:
+        if ros1 is not None:
+            ros1.close()
     vm = statistics.median(c["visnav"][0] for c in cross)
     vp = statistics.median(c["visnav"][1] for c in cross)
     rm = statistics.median(c["raw"][0] for c in cross)
@@ -189,14 +377,25 @@ def main() -> None:
     print(f"cross-process visnav call: median {vm:.3f} ms, p99 {vp:.3f} ms")
     print(f"cross-process raw Zenoh get: median {rm:.3f} ms, p99 {rp:.3f} ms")
     print(f"ratio visnav / raw: median {vm / rm:.2f}x, p99 {vp / rp:.2f}x (goal <= 1.3x)")
+    if missing:
+        print(f"rospy comparison skipped: {missing}")
+    else:
+        for name, label in (("plain", "ServiceProxy"), ("persistent", "ServiceProxy persistent")):
+            pm = statistics.median(r[name][0] for r in rospy_runs)
+            pp = statistics.median(r[name][1] for r in rospy_runs)
+            print(
+                f"rospy {label} -> rospy service: median {pm:.3f} ms, p99 {pp:.3f} ms; "
+                f"visnav / rospy: median {vm / pm:.2f}x, p99 {vp / pp:.2f}x (goal <= 0.5x)"
+            )
     for kind in ("local", "zenoh"):
-        runs = [bench_node_creation(kind) for _ in range(REPEATS)]
+        runs = [bench_node_creation(kind) for _ in range(repeats)]
         without = statistics.median(r["without"] for r in runs)
         with_ = statistics.median(r["with"] for r in runs)
         print(
             f"node creation ({kind}): {without:.3f} ms without, {with_:.3f} ms with the six "
             f"parameter services (+{with_ - without:.3f} ms)"
         )
+    print("load average (1, 5, 15 min) at the end: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
 
 
 if __name__ == "__main__":

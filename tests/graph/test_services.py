@@ -271,6 +271,61 @@ def test_future_basics() -> None:
     assert other.exception() is None
 
 
+def test_future_wait_wakes_every_waiting_thread_and_times_out() -> None:
+    fut: Future[int] = Future()
+    woke: list[bool] = []
+    threads = [threading.Thread(target=lambda: woke.append(fut.wait(5.0))) for _ in range(4)]
+    for t in threads:
+        t.start()
+    time.sleep(0.05)
+    assert woke == []
+    t0 = time.monotonic()
+    assert not Future().wait(0.05)
+    assert time.monotonic() - t0 >= 0.04
+    assert not Future().wait(0.0)
+    fut.set_result(1)
+    for t in threads:
+        t.join(5.0)
+    assert woke == [True] * 4
+    assert fut.wait(0.0)
+    assert fut.wait(None)
+    hooks: list[str] = []
+    late: Future[int] = Future()
+    late.on_complete(lambda: hooks.append("before"))
+    late.set_exception(ValueError("x"))
+    late.on_complete(lambda: hooks.append("after"))
+    assert hooks == ["before", "after"]
+    assert late.wait(1.0)
+
+
+def test_service_codecs_match_the_general_serde_and_word_its_errors() -> None:
+    from visnav.graph.service import _Decoder, _Encoder, _message_factory
+    from visnav.msgs.construct import default_message
+    from visnav.msgs.errors import MessageError
+
+    for name in SERVICE_DEFINITIONS:
+        stype = get_service_type(name)
+        for type_name in (stype.request_type_name, stype.response_type_name):
+            fresh = _message_factory(type_name)()
+            assert repr(fresh) == repr(default_message(type_name))
+            assert fresh is not _message_factory(type_name)()
+            data = bytes(_Encoder(type_name)(fresh))
+            assert data == serialize(fresh)
+            assert repr(_Decoder(type_name)(data)) == repr(fresh)
+    msg = SetBool.Response(success=True, message="héllo")
+    data = bytes(_Encoder(SetBool.response_type_name)(msg))
+    assert data == serialize(msg)
+    assert _Decoder(SetBool.response_type_name)(data) == msg
+    with pytest.raises(MessageError, match="cannot deserialize"):
+        _Decoder(SetBool.response_type_name)(data[:-3])
+    with pytest.raises(MessageError, match="cannot deserialize"):
+        _Decoder(SetBool.response_type_name)(b"\x00\x01")
+    with pytest.raises(MessageError, match="cannot serialize"):
+        _Encoder(SetBool.response_type_name)(SetBool.Response(success=True, message=5))
+    big_endian = b"\x00\x00\x00\x00\x01"  # CDR_BE: the general path decodes it
+    assert _Decoder(SetBool.request_type_name)(big_endian) == SetBool.Request(data=True)
+
+
 def test_large_in_process_request_is_not_copied(ctx: Context) -> None:
     set_map = get_service_type("nav_msgs/srv/SetMap")
     node = Node("n", context=ctx)

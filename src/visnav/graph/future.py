@@ -26,15 +26,33 @@ class Future(Generic[T]):
             to run them in an executor (:meth:`run_callbacks`); None runs them at once.
     """
 
+    # One future per service call: plain locks, not a threading.Condition (whose
+    # constructor alone costs more than the rest of a call's bookkeeping). ``_lock``
+    # guards the state; ``_gate`` (made by the first wait()) is held until completion
+    # releases it, and each waiter passes it on by releasing it again.
+    __slots__ = (
+        "__weakref__",
+        "_callbacks",
+        "_cancelled",
+        "_dispatch",
+        "_done",
+        "_exception",
+        "_gate",
+        "_internal",
+        "_lock",
+        "_result",
+    )
+
     def __init__(self, dispatch: Callable[[Future[T]], None] | None = None) -> None:
-        self._cond = threading.Condition(threading.Lock())
+        self._lock = threading.Lock()
+        self._gate: threading.Lock | None = None
         self._done = False
         self._cancelled = False
         self._result: T | None = None
         self._exception: BaseException | None = None
         self._callbacks: list[Callable[[Future[T]], Any]] = []
         self._dispatch = dispatch
-        self._internal: list[Callable[[], Any]] = []
+        self._internal: list[Callable[[], Any]] | None = None
 
     def done(self) -> bool:
         """Whether the future has a result, an exception, or was cancelled."""
@@ -64,7 +82,7 @@ class Future(Generic[T]):
 
     def cancel(self) -> None:
         """Give up: the future is done and cancelled; a late result is ignored."""
-        with self._cond:
+        with self._lock:
             if self._done:
                 return
             self._cancelled = True
@@ -73,17 +91,20 @@ class Future(Generic[T]):
     def _complete(
         self, result: T | None, exception: BaseException | None, *, cancelling: bool = False
     ) -> None:
-        with self._cond:
+        with self._lock:
             if self._done:
                 return
             self._result = result
             self._exception = exception
             self._done = True
-            self._cond.notify_all()
+            gate = self._gate
             has_callbacks = bool(self._callbacks)
-            internal, self._internal = self._internal, []
-        for hook in internal:
-            hook()
+            internal, self._internal = self._internal, None
+        if gate is not None:
+            gate.release()  # wakes the first waiter, which passes it on
+        if internal:
+            for hook in internal:
+                hook()
         if has_callbacks and not cancelling:
             if self._dispatch is not None:
                 self._dispatch(self)
@@ -92,7 +113,7 @@ class Future(Generic[T]):
 
     def add_done_callback(self, callback: Callable[[Future[T]], Any]) -> None:
         """Call ``callback(future)`` once done (in the executor; at once if already done)."""
-        with self._cond:
+        with self._lock:
             if not self._done:
                 self._callbacks.append(callback)
                 return
@@ -104,23 +125,41 @@ class Future(Generic[T]):
 
     def on_complete(self, hook: Callable[[], Any]) -> None:
         """Call ``hook()`` in the completing thread once done (plumbing, e.g. timers)."""
-        with self._cond:
+        with self._lock:
             if not self._done:
+                if self._internal is None:
+                    self._internal = []
                 self._internal.append(hook)
                 return
         hook()
 
     def run_callbacks(self) -> None:
         """Run (and forget) the pending done callbacks; the executor calls this."""
-        with self._cond:
+        with self._lock:
             callbacks, self._callbacks = self._callbacks, []
         for cb in callbacks:
             cb(self)
 
     def wait(self, timeout_sec: float | None = None) -> bool:
         """Block until done or ``timeout_sec`` passes; return :meth:`done`."""
-        with self._cond:
-            return self._cond.wait_for(lambda: self._done, timeout_sec)
+        if self._done:
+            return True
+        with self._lock:
+            if self._done:
+                return True
+            gate = self._gate
+            if gate is None:
+                gate = self._gate = threading.Lock()
+                gate.acquire()
+        if timeout_sec is None:
+            got = gate.acquire()
+        elif timeout_sec > 0:
+            got = gate.acquire(timeout=timeout_sec)
+        else:
+            got = gate.acquire(blocking=False)
+        if got:
+            gate.release()  # the next waiter (if any) wakes in turn
+        return self._done
 
     def __repr__(self) -> str:
         state = "cancelled" if self._cancelled else "done" if self._done else "pending"

@@ -35,6 +35,7 @@ Actions build on this module: an action is three services (``send_goal``,
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import hashlib
 import itertools
@@ -52,7 +53,7 @@ from visnav.graph.future import Future
 from visnav.graph.qos import QoSProfile
 from visnav.msgs.construct import default_message
 from visnav.msgs.errors import MessageError
-from visnav.msgs.serde import deserialize, serialize
+from visnav.msgs.serde import deserialize, serialize, typestore
 from visnav.msgs.srv import ServiceType
 
 if TYPE_CHECKING:
@@ -97,6 +98,100 @@ def decode_service_attachment(data: bytes | None) -> tuple[int, int, bytes] | No
     return seq, stamp, bytes(data[_ATTACH.size + 1 :])
 
 
+def _reply_attachment(request_attachment: bytes | None) -> bytearray | None:
+    """The reply's attachment: the request's sequence number and GID, a new source time."""
+    if (
+        request_attachment is None
+        or len(request_attachment) != _ATTACH.size + 1 + _GID_SIZE
+        or request_attachment[_ATTACH.size] != _GID_SIZE
+    ):
+        return None
+    reply = bytearray(request_attachment)
+    _STAMP.pack_into(reply, 8, time.time_ns())
+    return reply
+
+
+_STAMP = struct.Struct("<q")
+_CDR_LE = b"\x00\x01"
+
+
+class _Decoder:
+    """Decode CDR of one message type with its generated function, looked up once.
+
+    A call's hot path: the general :func:`~visnav.msgs.serde.deserialize` looks the
+    type up on every call. Anything but well-formed little-endian CDR goes to it, so
+    errors (and big-endian data) are handled and worded exactly as there.
+    """
+
+    __slots__ = ("_cls", "_func", "_store", "type_name")
+
+    def __init__(self, type_name: str) -> None:
+        self.type_name = type_name
+        self._store = typestore()
+        msgdef = self._store.get_msgdef(type_name)
+        self._func = msgdef.deserialize_cdr_le
+        self._cls = msgdef.cls
+
+    def __call__(self, data: bytes) -> Any:
+        """The message in ``data``; raises MessageError when it does not decode."""
+        if data[:2] == _CDR_LE:
+            try:
+                message, pos = self._func(memoryview(data)[4:], 0, self._cls, self._store)
+            except Exception:  # noqa: BLE001, S110 - the general path words the error
+                pass
+            else:
+                if pos + 4 + 3 >= len(data):
+                    return message
+        return deserialize(memoryview(data), self.type_name)
+
+
+class _Encoder:
+    """Encode messages of one type as little-endian CDR with its generated function.
+
+    The client's hot path (see :class:`_Decoder`); a message that does not encode goes
+    to :func:`~visnav.msgs.serde.serialize`, which words the error.
+    """
+
+    __slots__ = ("_func", "_size", "_store")
+
+    def __init__(self, type_name: str) -> None:
+        self._store = typestore()
+        msgdef = self._store.get_msgdef(type_name)
+        self._size = msgdef.getsize_cdr
+        self._func = msgdef.serialize_cdr_le
+
+    def __call__(self, message: Any) -> bytes | bytearray:
+        """``message`` as CDR; raises MessageError when it does not encode."""
+        try:
+            size = self._size(0, message, self._store)
+            data = bytearray(4 + size)  # fresh zeros: the generated code skips padding
+            data[1] = 1
+            if self._func(memoryview(data)[4:], 0, message, self._store) == size:
+                return data
+        except Exception:  # noqa: BLE001, S110 - the general path words the error
+            pass
+        return serialize(message)
+
+
+def _message_factory(type_name: str) -> Callable[[], Any]:
+    """A maker of fresh default messages of ``type_name`` (``default_message``'s result).
+
+    For types whose fields are all immutable scalars (std_srvs' responses) the
+    defaults are computed once; others are built by ``default_message`` each time
+    (their arrays and nested messages must not be shared between calls).
+    """
+    template = default_message(type_name)
+    values = {
+        f.name: getattr(template, f.name)
+        for f in dataclasses.fields(template)
+        if f.init and f.name != "__msgtype__"
+    }
+    if all(type(v) in {bool, int, float, str} for v in values.values()):
+        cls: Callable[..., Any] = type(template)
+        return functools.partial(cls, **values)
+    return functools.partial(default_message, type_name)
+
+
 class _Request:
     """A request waiting in a server's queue, with the way back to its caller."""
 
@@ -116,24 +211,28 @@ class _Request:
         self.query = query
         self.attachment = attachment
 
-    def respond(self, response: Any) -> None:
+    def respond(
+        self, response: Any, encode: Callable[[Any], bytes | bytearray] = serialize
+    ) -> None:
         if self.future is not None:
             self.future.set_result(response)
             return
-        data = serialize(response)
-        self._reply(lambda q: q.reply(q.key_expr, data, attachment=self._reply_attachment()))
+        data = encode(response)
+        query, self.query = self.query, None
+        if query is None:
+            return
+        try:  # inline rather than through _reply: this is a call's hot path
+            query.reply(query.key_expr, data, attachment=_reply_attachment(self.attachment))
+        except Exception:  # noqa: BLE001, S110 - the caller went away (timeout, exit)
+            pass
+        finally:
+            query.drop()
 
     def fail(self, text: str) -> None:
         if self.future is not None:
             self.future.set_exception(ServiceError(text))
             return
         self._reply(lambda q: q.reply_err(text.encode()))
-
-    def _reply_attachment(self) -> bytes | None:
-        parsed = decode_service_attachment(self.attachment)
-        if parsed is None:
-            return None
-        return encode_service_attachment(parsed[0], time.time_ns(), parsed[2])
 
     def _reply(self, send: Callable[[Any], None]) -> None:
         query, self.query = self.query, None
@@ -175,6 +274,9 @@ class Service(Generic[ReqT, RespT]):
         """Remote requests that did not decode (answered with an error, logged once)."""
         self._queryable: Any = None
         self._response_cls = srv_type.Response
+        self._new_response = _message_factory(srv_type.response_type_name)
+        self._decode_request = _Decoder(srv_type.request_type_name)
+        self._encode_response = _Encoder(srv_type.response_type_name)
 
     @property
     def service_name(self) -> str:
@@ -213,7 +315,7 @@ class Service(Generic[ReqT, RespT]):
         if not item.remote:
             return item.payload
         try:
-            return deserialize(memoryview(item.payload), self.srv_type.request_type_name)
+            return self._decode_request(item.payload)
         except MessageError as exc:
             self.bad_requests += 1
             text = f"{self.describe()} could not read the request: {exc}"
@@ -226,7 +328,7 @@ class Service(Generic[ReqT, RespT]):
         request = self._read_request(item)
         if request is None:
             return
-        response = default_message(self.srv_type.response_type_name)
+        response = self._new_response()
         try:
             result = self.callback(request, response)
         except Exception as exc:
@@ -241,7 +343,7 @@ class Service(Generic[ReqT, RespT]):
             item.fail(text)
             raise ServiceError(text)
         try:
-            item.respond(result)
+            item.respond(result, self._encode_response)
         except MessageError as exc:
             item.fail(f"{self.describe()} could not send its response: {exc}")
             raise
@@ -291,6 +393,9 @@ class Client(Generic[ReqT, RespT]):
         self._gid = entity_gid(node.context.zid, self.entity_id)
         self._callbacks: deque[Future[Any]] = deque()
         self._request_cls = srv_type.Request
+        self._decode_response = _Decoder(srv_type.response_type_name)
+        self._encode_request = _Encoder(srv_type.request_type_name)
+        self._gid_tail = bytes([_GID_SIZE]) + self._gid[:_GID_SIZE]
         self._pending: set[Future[Any]] = set()
         self._lock = threading.Lock()
 
@@ -356,15 +461,17 @@ class Client(Generic[ReqT, RespT]):
             future.set_exception(self._no_server())
             return future
         try:
-            payload = serialize(request)
+            payload = self._encode_request(request)
         except MessageError as exc:
             raise ServiceError(f"{self.describe()}: {exc}") from exc
         self._send(future, payload, timeout_sec)
         return future
 
-    def _send(self, future: Future[RespT], payload: bytes, timeout_sec: float | None) -> None:
+    def _send(
+        self, future: Future[RespT], payload: bytes | bytearray, timeout_sec: float | None
+    ) -> None:
         got = [False]
-        response_type = self.srv_type.response_type_name
+        decode = self._decode_response
 
         def on_reply(reply: Any) -> None:
             if got[0]:
@@ -380,7 +487,7 @@ class Client(Generic[ReqT, RespT]):
                 future.set_exception(ServiceError(f"{self.describe()}: {text}"))
                 return
             try:
-                response = deserialize(memoryview(ok.payload.to_bytes()), response_type)
+                response = decode(ok.payload.to_bytes())
             except MessageError as exc:
                 future.set_exception(
                     ServiceError(f"{self.describe()}: the server's response is unreadable: {exc}")
@@ -396,7 +503,8 @@ class Client(Generic[ReqT, RespT]):
                     future.set_exception(self._no_server(mid_call=True))
 
         deadline = time.monotonic() + (timeout_sec if timeout_sec is not None else _FOREVER_S)
-        att = encode_service_attachment(next(self._seq), time.time_ns(), self._gid)
+        # encode_service_attachment(seq, now, gid), with the GID part made once
+        att = _ATTACH.pack(next(self._seq), time.time_ns()) + self._gid_tail
         session, key = self._session, self._key
         if session is None or key is None:  # pragma: no cover - checked by call_async
             future.set_exception(self._no_server())
