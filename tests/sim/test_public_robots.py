@@ -173,10 +173,10 @@ def test_rosbot_tutorial_launch_with_gmapping_imports() -> None:
         packages=ROSBOT_PACKAGES,
         skip_unmapped=True,
     )
-    assert sorted(n.executable for n in desc.nodes) == ["sim", "viz"]  # rviz -> the viewer
+    # gmapping -> visnav's slam_gmapping, rviz -> the viewer
+    assert sorted(n.executable for n in desc.nodes) == ["sim", "slam_gmapping", "viz"]
     (sim,) = (n for n in desc.nodes if n.executable == "sim")
     assert sim.params["world"] == str(ROSBOT_GAZEBO / "worlds" / "turtlebot_playground.world")
-    assert any("slam_gmapping" in note for note in desc.notes)  # no visnav counterpart yet
 
 
 @pytest.mark.slow

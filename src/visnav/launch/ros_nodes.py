@@ -81,7 +81,9 @@ MAPPABLE = (
     "rviz (-> the viz node), ego_planner ego_planner_node and traj_server, waypoint_generator "
     "(folded into the planner), usb_cam usb_cam_node, cv_camera cv_camera_node, "
     "controller_manager spawner / controller_manager spawn|load|start (the sim's ros_control "
-    "controllers). ROS 2 launch "
+    "controllers), map_server map_server / map_saver, amcl, move_base (DWAPlannerROS), "
+    "gmapping slam_gmapping, explore_lite explore, turtlebot3_teleop turtlebot3_teleop_key, "
+    "teleop_twist_keyboard. ROS 2 launch "
     "files (Python or XML) are out of scope: write a visnav "
     "YAML launch file (docs/launch.md)"
 )
@@ -401,10 +403,13 @@ def translate_node(node: RosNode, params: ParamServer, packages: Mapping[str, st
         params: the parameter server after the whole file was loaded.
         packages: package directories known to the import (for the simulator's meshes).
     """
+    from visnav.launch.ros_nav_nodes import NAV_TRANSLATORS  # noqa: PLC0415 (cycle)
     from visnav.launch.ros_planner_nodes import PLANNER_TRANSLATORS  # noqa: PLC0415 (cycle)
 
     key = (node.pkg, node.type)
-    translate = NODE_TRANSLATORS.get(key) or PLANNER_TRANSLATORS.get(key)
+    translate = (
+        NODE_TRANSLATORS.get(key) or PLANNER_TRANSLATORS.get(key) or NAV_TRANSLATORS.get(key)
+    )
     if translate is None:
         return None, [
             f"<node pkg={node.pkg!r} type={node.type!r}> ({node.fqn}) has no visnav counterpart"

@@ -42,6 +42,7 @@ from visnav.launch.yaml_scope import (
     suggest_key,
     typed_value,
 )
+from visnav.mapping.errors import MappingError
 from visnav.node_registry import UnknownNodeError, check_node_name
 from visnav.safe_yaml import LineMap
 from visnav.textfile import TextFileError, read_text
@@ -85,9 +86,24 @@ ENTRY_KEYS: Mapping[str, frozenset[str]] = {
     ),
 }
 
+
+def _map_server_args(words: Sequence[str]) -> dict[str, Any]:
+    from visnav.mapping.map_server_node import map_server_params_from_args  # noqa: PLC0415
+
+    return map_server_params_from_args(words)
+
+
+def _map_saver_args(words: Sequence[str]) -> dict[str, Any]:
+    from visnav.mapping.map_saver_node import map_saver_params_from_args  # noqa: PLC0415
+
+    return map_saver_params_from_args(words)
+
+
 # Built-in nodes that also accept a command line (``args:``), translated into parameters.
 _ARG_TRANSLATORS: Mapping[str, Callable[[Sequence[str]], dict[str, Any]]] = {
     "static_transform_publisher": static_transform_params_from_args,
+    "map_server": _map_server_args,  # map_server MAP.yaml
+    "map_saver": _map_saver_args,  # map_saver -f NAME --occ N --free N
 }
 
 IncludeLoader = Callable[[str, Mapping[str, str], Scope, tuple[str, ...]], list[NodeSpec]]
@@ -323,7 +339,13 @@ class _YamlInterpreter:
             ns = self.text(body["namespace"], scope, line)
             inner.namespace = join_namespace(scope.namespace, ns, self.at(line))
         chain = (*self.chain, f"{self.source}:{line}")
-        self.nodes.extend(self.include_loader(str(path), args, inner, chain))
+        included = self.include_loader(str(path), args, inner, chain)
+        if inner.use_sim_time is not None:  # a group's use_sim_time reaches roslaunch files too
+            included = [
+                n if n.use_sim_time is not None else replace(n, use_sim_time=inner.use_sim_time)
+                for n in included
+            ]
+        self.nodes.extend(included)
 
     def remaps(self, value: Any, scope: Scope, line: int | None) -> tuple[tuple[str, str], ...]:
         pairs: list[tuple[Any, Any]]
@@ -494,7 +516,7 @@ class _YamlInterpreter:
         words = [self.text(w, scope, line) for w in words]
         try:
             return translate(words)
-        except StaticTransformError as exc:
+        except (StaticTransformError, MappingError) as exc:
             raise LaunchParseError(f"{self.at(line)}{exc}") from None
 
     def number(self, value: Any, scope: Scope, line: int | None, what: str) -> float:

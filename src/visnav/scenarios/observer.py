@@ -90,6 +90,10 @@ class ObserverParams:
     scenario: str = param("car", description="car or drone: which summary keys", read_only=True)
     world: str = param("office", description="the world (shortest paths, clearance, spawn)")
     seed: int = param(0, description="the world's seed (the run's seed)")
+    packages: list[str] = param(  # noqa: RUF009
+        [], description="name=DIR packages an SDF world's model:// models come from"
+    )
+    map_quality: bool = param(False, description="score the map on map_topic against the world")
     goals: int = param(4, description="goals the task has (done when all ended)", range=(1, 1000))
     output_dir: str = param("", description="where summary.json goes ('': nowhere)")
     ground_truth_topic: str = param("/ground_truth/odom", description="ground truth Odometry")
@@ -136,7 +140,8 @@ class ObserverNode(Node):
             raise ScenarioError(msg)
         from visnav.description.world import load_world  # noqa: PLC0415
 
-        self.world = load_world(p.world, seed=p.seed)
+        packages = dict(item.split("=", 1) for item in p.packages if "=" in item)
+        self.world = load_world(p.world, seed=p.seed, packages=packages)
         self._truth: list[tuple[float, float, float]] = []
         self._truth_ns: list[int] = []
         self._truth_poses: list[FloatArray] = []

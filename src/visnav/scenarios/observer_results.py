@@ -102,7 +102,30 @@ def car_results(node: ObserverNode, slam: SlamTrajectories | None = None) -> dic
         out["localization"] = node._loc.summary(node.params.localization_source)
     if node.params.slam:
         out["slam"] = _slam(node, slam if slam is not None else slam_trajectories(node))
+    if node.params.map_quality:
+        out["map_quality"] = _map_quality(node)
     return out
+
+
+def _map_quality(node: ObserverNode) -> dict[str, Any] | None:
+    """:func:`~visnav.scenarios.map_quality.map_quality` of the last map (None: no map)."""
+    from visnav.scenarios.map_quality import map_quality  # noqa: PLC0415 - only when asked
+
+    grid = node._map
+    if grid is None or not node._truth:
+        return None
+    info = grid.info
+    data = np.asarray(grid.data, dtype=np.int8).reshape(info.height, info.width)
+    start = (float(node._truth[0][0]), float(node._truth[0][1]))
+    origin = (float(info.origin.position.x), float(info.origin.position.y))
+    return map_quality(
+        data,
+        resolution=float(info.resolution),
+        origin=origin,
+        world=node.world,
+        start=start,
+        robot_radius=node.params.robot_radius,
+    )
 
 
 def drone_results(node: ObserverNode) -> dict[str, Any]:

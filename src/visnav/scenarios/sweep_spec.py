@@ -149,7 +149,7 @@ RUN_OPTIONS: dict[str, RunOption] = {
 :func:`~visnav.scenarios.saved_map.saved_map_launch_args` for the run's path, its ``{seed}``
 replaced; the others are :func:`run_scenario` keywords.
 """
-_MAP_SCENARIOS = ("car",)
+_MAP_SCENARIOS = ("car", "tb3-nav")
 """The built-in scenarios that can localise in a saved map (launch arg ``use_map``)."""
 
 
@@ -357,6 +357,8 @@ class RunSpec:
         for key, value in self.options.items():
             if file and key not in _FILE_RUNNER_KEYS:
                 launch[key] = _format_value(value)
+            elif key == "map" and self.scenario.startswith("tb3-"):  # their map_file
+                launch["map"] = str(value)
             elif key == "map":  # as visnav run car --map
                 loc = str(self.options.get("map_localization", "slam"))
                 slam = bool(self.options.get("slam", True))
@@ -476,7 +478,9 @@ def check_run_inputs(runs: Sequence[RunSpec]) -> None:
         try:
             load_map(path)
             loc = str(spec.options.get("map_localization", "slam"))
-            saved_map_launch_args(path, loc, slam=bool(spec.options.get("slam", True)), check=True)
+            if not spec.scenario.startswith("tb3-"):  # the TurtleBot3 runs: AMCL only
+                slam = bool(spec.options.get("slam", True))
+                saved_map_launch_args(path, loc, slam=slam, check=True)
         except ScenarioError as exc:  # no SLAM map beside the map
             problems.append((spec, str(exc)))
         except VisnavError as exc:
