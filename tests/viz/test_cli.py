@@ -63,7 +63,7 @@ def test_image_view_streams_to_rerun(
     r = _cli(capsys, "image", "view", "/cam/image_raw", "--save", str(out), "--duration", "1.5")
     assert r.returncode == 0, r.stderr
     rrd = vz.Rrd(out)
-    assert len(rrd.rows("world/cameras/cam/image_raw", "Image:buffer")) >= 3
+    assert len(rrd.rows("world/cameras/cam/image_raw", "EncodedImage:blob")) >= 3
     assert "world/points" not in rrd.entities  # only the one image topic (and TF)
 
 
@@ -97,7 +97,7 @@ def test_view_live_saves_the_topics(
     pts = np.array(rrd.rows("world/points", "Points3D:positions")[-1])
     assert len(pts) == 100
     assert np.allclose(pts.mean(axis=0)[2], 1.0, atol=0.3)  # cloud raised by the static TF
-    assert len(rrd.rows("world/cameras/cam/image_raw", "Image:buffer")) >= 5
+    assert len(rrd.rows("world/cameras/cam/image_raw", "EncodedImage:blob")) >= 5
 
 
 def _write_bag(path: Path, vz: Any) -> None:
@@ -124,7 +124,8 @@ def test_view_bag_saves_an_rrd(tmp_path: Path, vz: Any, capsys: Any) -> None:
     bag = tmp_path / "bag"
     _write_bag(bag, vz)
     out = tmp_path / "bag.rrd"
-    assert main(["view", str(bag), "--save", str(out), "--topics", "/points"]) == 0
+    args = ["view", str(bag), "--save", str(out), "--topics", "/points", "--all-frames"]
+    assert main(args) == 0
     err = capsys.readouterr().err
     assert "logged 6 messages" in err  # /points + /tf_static, not the image
     rrd = vz.Rrd(out)
@@ -152,12 +153,25 @@ def test_view_bag_skips_a_message_that_does_not_decode(
             w.write(points, t, data[:30] if i == 2 else data)  # the third one cut short
     out = tmp_path / "bag.rrd"
     with caplog.at_level(logging.WARNING, logger="visnav.viz"):
-        assert main(["view", str(bag), "--save", str(out)]) == 0
+        assert main(["view", str(bag), "--save", str(out), "--all-frames"]) == 0
     err = capsys.readouterr().err
     assert "logged 3 messages" in err
     (row,) = [line.split() for line in err.splitlines() if line.startswith("/points")]
-    assert row[-3:] == ["3", "0", "1"]  # logged, dropped, errors
+    assert row[-4:] == ["3", "0", "0", "1"]  # logged, skipped, dropped, errors
     assert "/points (sensor_msgs/msg/PointCloud2) skipped: bag" in caplog.text
+    assert len(vz.Rrd(out).rows("world/points", "Points3D:positions")) == 3
+
+
+def test_view_bag_shows_clouds_at_the_display_rate(tmp_path: Path, vz: Any, capsys: Any) -> None:
+    """10 Hz clouds are shown at 5 Hz by default: every other one, counted as skipped."""
+    pytest.importorskip("rerun")
+    bag = tmp_path / "bag"
+    _write_bag(bag, vz)
+    out = tmp_path / "bag.rrd"
+    assert main(["view", str(bag), "--save", str(out), "--world", "none"]) == 0
+    err = capsys.readouterr().err
+    (row,) = [line.split() for line in err.splitlines() if line.startswith("/points")]
+    assert row[-4:] == ["3", "2", "0", "0"]  # logged, skipped, dropped, errors
     assert len(vz.Rrd(out).rows("world/points", "Points3D:positions")) == 3
 
 

@@ -183,3 +183,20 @@ def test_layout_puts_the_cameras_beside_the_3d_view(
 def test_parse_robot_description_fuzz(text: str) -> None:
     with contextlib.suppress(VizError):
         robot_visuals(parse_robot_description(text))
+
+
+def test_collada_meshes_are_drawn_with_their_colours(session: Any, vz: Any) -> None:
+    """A .dae mesh (Rerun cannot read Collada) is read by visnav into one coloured Mesh3D."""
+    dae = Path(__file__).parents[1] / "data/husky/husky_description/meshes/top_plate.dae"
+    urdf = f"""<robot name="plate"><link name="base_link">
+    <visual><geometry><mesh filename="file://{dae}"/></geometry></visual></link></robot>"""
+    s = session(fixed_frame="base_link")
+    s.log("/tf_static", vz.tf_msg(vz.tf("base_link", "base_link_", 0)))
+    assert s.log("/robot_description", String(data=urdf), T0)
+    rrd = s.finish()
+    (entity,) = [e for e in rrd.entities if e.endswith("base_link/visual_0")]
+    assert "Mesh3D:vertex_positions" in rrd.columns(entity)
+    verts = np.asarray(rrd.rows(entity, "Mesh3D:vertex_positions")[0])
+    colors = np.asarray(rrd.rows(entity, "Mesh3D:vertex_colors")[0])
+    assert len(verts) >= 8  # the plate: a box-like solid
+    assert len(colors) == len(verts)

@@ -45,7 +45,7 @@ def _static(vz: Any) -> Any:
 
 
 def test_image_encodings_log_with_the_right_archetype(session: Any, vz: Any) -> None:
-    s = session(fixed_frame="cam")
+    s = session(fixed_frame="cam", jpeg_quality=None)
     rgb = np.zeros((4, 6, 3), np.uint8)
     rgb[..., 0] = 200
     s.log("/cam/image_raw", numpy_to_image(rgb, "rgb8", header=vz.header("cam", T0)))
@@ -65,10 +65,36 @@ def test_image_encodings_log_with_the_right_archetype(session: Any, vz: Any) -> 
     assert "Image:buffer" in rrd.columns("world/cameras/cam/image_bayer")
     assert "Image:buffer" in rrd.columns("world/cameras/cam/image_yuv")  # converted to RGB
     meters = rrd.rows("world/cameras/depth/image_raw", "DepthImage:meter")
-    assert meters == [[1.0]]
+    assert meters == [[1000.0]]  # 32FC1 metres sent as 16-bit millimetres
     assert rrd.rows("world/cameras/depth/image_mm", "DepthImage:meter") == [[1000.0]]
     # The camera namespace entity is placed in the fixed frame (identity here).
     assert rrd.rows("world/cameras/cam", "Transform3D:translation")[0] == [[0.0, 0.0, 0.0]]
+
+
+def test_colour_images_are_sent_as_jpeg_by_default(session: Any, vz: Any) -> None:
+    import cv2
+
+    s = session(fixed_frame="cam")
+    rgb = np.zeros((48, 64, 3), np.uint8)
+    rgb[..., 0] = 200  # red
+    s.log("/cam/image_raw", numpy_to_image(rgb, "rgb8", header=vz.header("cam", T0)))
+    s.log(
+        "/cam/image_bgr", numpy_to_image(rgb[..., ::-1].copy(), "bgr8", header=vz.header("cam", T0))
+    )
+    depth = np.full((4, 6), 2.5, np.float32)
+    depth[0, 0] = np.nan
+    s.log("/depth/image_raw", numpy_to_image(depth, "32FC1", header=vz.header("cam", T0)))
+    rrd = s.finish()
+    for topic in ("image_raw", "image_bgr"):
+        entity = f"world/cameras/cam/{topic}"
+        assert rrd.rows(entity, "EncodedImage:media_type") == [["image/jpeg"]]
+        blob = np.asarray(rrd.rows(entity, "EncodedImage:blob")[0], np.uint8).ravel().tobytes()
+        assert len(blob) < rgb.nbytes / 10
+        decoded = cv2.imdecode(np.frombuffer(blob, np.uint8), cv2.IMREAD_COLOR)
+        assert abs(int(decoded[..., 2].mean()) - 200) <= 3  # red stays red (BGR order)
+        assert int(decoded[..., 0].mean()) <= 3
+    fmt = rrd.rows("world/cameras/depth/image_raw", "DepthImage:format")[0][0]
+    assert (fmt["width"], fmt["height"]) == (6, 4)
 
 
 def test_compressed_images_are_logged_encoded_and_depth_decoded(session: Any, vz: Any) -> None:
@@ -86,7 +112,8 @@ def test_compressed_images_are_logged_encoded_and_depth_decoded(session: Any, vz
     assert media == [["image/jpeg"]]
     media = rrd.rows("world/cameras/cam/image_png/compressed", "EncodedImage:media_type")
     assert media == [["image/png"]]
-    assert rrd.rows("world/cameras/depth/image_raw/compressedDepth", "DepthImage:meter") == [[1.0]]
+    meter = rrd.rows("world/cameras/depth/image_raw/compressedDepth", "DepthImage:meter")
+    assert meter == [[1000.0]]
     assert s.sink.errors == {"/cam/broken/compressed": 1}
 
 

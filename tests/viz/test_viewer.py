@@ -31,7 +31,7 @@ def test_web_viewer_and_grpc_server_listen_on_loopback_only(tmp_path: Path) -> N
 
     from visnav.viz import open_viewer
 
-    with open_viewer(web=True, save=tmp_path / "x.rrd") as viewer:
+    with open_viewer(web=True, port=0, grpc_port=0, save=tmp_path / "x.rrd") as viewer:
         assert viewer.url is not None
         assert viewer.url.startswith("http://127.0.0.1:")
         assert viewer.grpc_url is not None
@@ -41,8 +41,9 @@ def test_web_viewer_and_grpc_server_listen_on_loopback_only(tmp_path: Path) -> N
         web = _listening(viewer.web_process.pid)
         ours = _listening(os.getpid())
         assert ("127.0.0.1", web_port) in web
-        assert ("127.0.0.1", grpc_port) in ours
-        for ip, _ in web | {a for a in ours if a[1] == grpc_port}:
+        assert ("127.0.0.1", grpc_port) in web  # the rerun process serves both
+        assert not ours  # this process listens on nothing
+        for ip, _ in web:
             assert ip == "127.0.0.1", f"bound to {ip}"
         with urllib.request.urlopen(viewer.url, timeout=10) as resp:
             page = resp.read().decode(errors="replace")
@@ -100,3 +101,27 @@ def test_missing_rerun_cli_message(no_rerun: None, tmp_path: Path, capsys: Any) 
     err = capsys.readouterr().err
     assert err.startswith("error: " + RERUN_MISSING_TEXT)
     assert err.count("\n") == 1  # one line, no traceback
+
+
+def test_fixed_ports_a_busy_port_is_named_and_rerun_logs_go_to_a_file(tmp_path: Path) -> None:
+    pytest.importorskip("rerun")
+    import socket
+
+    from visnav.viz import VizError, open_viewer
+    from visnav.viz.viewer import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
+
+    assert (DEFAULT_WEB_PORT, DEFAULT_GRPC_PORT) == (9090, 9876)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        with pytest.raises(VizError, match=f"127.0.0.1:{port} is in use.*--port N"):
+            open_viewer(web=True, port=port, grpc_port=0)
+        with pytest.raises(VizError, match="--grpc-port N"):
+            open_viewer(web=True, port=0, grpc_port=port)
+    log = tmp_path / "viewer.log"
+    with open_viewer(web=True, port=0, grpc_port=0, log_path=log) as viewer:
+        assert viewer.log_path == log
+        assert viewer.save is None
+    assert "Listening for gRPC connections" in log.read_text(errors="replace")
+    assert list(tmp_path.iterdir()) == [log]  # nothing else written

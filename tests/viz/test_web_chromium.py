@@ -56,7 +56,7 @@ def _counts(png: Path) -> dict[str, int]:
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian chromium is not installed")
 def test_web_viewer_renders_image_and_cloud_in_headless_chromium(tmp_path: Path, vz: Any) -> None:
     cdp = _cdp()
-    with open_viewer(web=True) as viewer:
+    with open_viewer(web=True, port=0, grpc_port=0) as viewer:
         assert viewer.url is not None
         assert viewer.url.startswith("http://127.0.0.1:")
         sink = RerunSink(viewer.recording, fixed_frame="map")
@@ -93,3 +93,38 @@ def test_web_viewer_renders_image_and_cloud_in_headless_chromium(tmp_path: Path,
         assert counts["red"] > 1500, counts  # left half of the camera image
         assert counts["blue"] > 1500, counts  # right half of the camera image
         assert counts["green"] > 1500, counts  # the point cloud
+
+
+@pytest.mark.slow
+@pytest.mark.ci
+@pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian chromium is not installed")
+def test_office_world_renders_in_its_colours_in_headless_chromium(tmp_path: Path, vz: Any) -> None:
+    """The default 3D view of the office: its floor, walls and furniture fill the page."""
+    import cv2
+
+    from visnav.description.world import load_world
+
+    cdp = _cdp()
+    world = load_world("office", seed=0)
+    with open_viewer(web=True, port=0, grpc_port=0) as viewer:
+        assert viewer.url is not None
+        sink = RerunSink(viewer.recording, fixed_frame="map")
+        paths = sink.log_world(world)
+        assert "world/scene/boxes" in paths
+        sink.log("/tf_static", vz.tf_msg(vz.tf("map", "odom", 0)))
+        sink.close()
+        shot = tmp_path / "office.png"
+        colourful = 0.0
+        with cdp.headless_chromium(tmp_path / "chromium", log=tmp_path / "chromium.log") as page:
+            page.call("Page.navigate", url=viewer.url)
+            deadline = time.monotonic() + 150.0
+            while time.monotonic() < deadline:
+                time.sleep(3.0)
+                page.screenshot(shot)
+                hsv = cv2.cvtColor(cv2.imread(str(shot)), cv2.COLOR_BGR2HSV)
+                # the viewer's chrome is grey; the office's materials are coloured
+                colourful = float(((hsv[..., 1] > 60) & (hsv[..., 2] > 60)).mean())
+                if colourful > 0.05:
+                    break
+        print(f"screenshot {shot}: {colourful:.1%} coloured pixels")
+        assert colourful > 0.05

@@ -3,8 +3,10 @@
 ``ViewerNode`` opens a Rerun viewer (the web viewer on 127.0.0.1 by default, since
 launches often run headless; ``web: false`` spawns the native viewer) and streams every
 topic of its context's graph to it, placed in ``fixed_frame`` through TF as
-``visnav view`` does. Parameters: ``fixed_frame`` (default: the TF root), ``web``
-(true), ``save`` (an ``.rrd`` path, default none), ``config`` (an ``.rviz`` file: read
+``visnav view`` does (a :class:`~visnav.viz.live_view.LiveView`: display rate, worker
+thread, the sim's world). Parameters: ``fixed_frame`` (default: map, odom, world or the
+TF root), ``web`` (true), ``port`` (9090) and ``grpc_port`` (9876), ``memory_limit``
+(512MB), ``save`` (an ``.rrd`` path, default none), ``config`` (an ``.rviz`` file: read
 for the fixed frame only by the roslaunch import), ``packages`` (``name=DIR``: the robot
 model's ``package://`` meshes; the roslaunch import gives every package it knows).
 """
@@ -17,9 +19,8 @@ from typing import TYPE_CHECKING
 from visnav.graph.clock import Clock, ClockType
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
-from visnav.viz.sink import RerunSink
-from visnav.viz.sources import LiveFeed
-from visnav.viz.viewer import open_viewer
+from visnav.viz.live_view import LiveView
+from visnav.viz.viewer import DEFAULT_GRPC_PORT, DEFAULT_MEMORY_LIMIT, DEFAULT_WEB_PORT
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -33,6 +34,9 @@ class ViewerParams:
 
     fixed_frame: str = param("", description="frame the scene is drawn in (empty: TF root)")
     web: bool = param(True, description="web viewer on 127.0.0.1 (false: native viewer)")
+    port: int = param(DEFAULT_WEB_PORT, description="web viewer page port (0: a free one)")
+    grpc_port: int = param(DEFAULT_GRPC_PORT, description="viewer data port (0: a free one)")
+    memory_limit: str = param(DEFAULT_MEMORY_LIMIT, description="kept for late pages")
     save: str = param("", description="also write an .rrd recording here (empty: none)")
     config: str = param("", description="an .rviz file (read by the roslaunch import only)")
     packages: tuple[str, ...] = param(("",), description="name=DIR for package:// meshes")
@@ -44,26 +48,32 @@ class ViewerNode(Node):
     def __init__(self, name: str = "viewer", **node_kwargs: Unpack[NodeOptions]) -> None:
         super().__init__(name, **node_kwargs)
         p = self.params = declare_params(self, ViewerParams)
-        fixed, web, save = p.fixed_frame or None, p.web, p.save or None
-        self.viewer = open_viewer(web=web, save=save)
-        if self.viewer.url:
-            self.get_logger().info(f"viewer: {self.viewer.url}")
         packages = dict(
             item.split("=", 1) for item in p.packages if "=" in item and item.split("=", 1)[1]
         )
-        sink = RerunSink(self.viewer.recording, fixed_frame=fixed, packages=packages)
-        self.feed = LiveFeed(sink, self.context)
+        self.view = LiveView(
+            self.context,
+            web=p.web,
+            port=p.port,
+            grpc_port=p.grpc_port,
+            memory_limit=p.memory_limit,
+            save=p.save or None,
+            fixed_frame=p.fixed_frame or None,
+            packages=packages,
+        )
+        self.viewer = self.view.viewer
+        self.feed = self.view.feed
+        if self.viewer.url:
+            self.get_logger().info(f"viewer: {self.viewer.url}")
         steady = Clock(ClockType.STEADY_TIME)
         self.create_timer(0.5, self._poll, clock=steady)
 
     def _poll(self) -> None:
-        self.feed.scan()
-        self.feed.sink.poll()
+        self.view.poll()
 
     def destroy_node(self) -> None:
         """Close the viewer, then destroy the node."""
-        feed = getattr(self, "feed", None)
-        if feed is not None:
-            feed.close()
-            self.viewer.close()
+        view = getattr(self, "view", None)
+        if view is not None:
+            view.close()
         super().destroy_node()

@@ -79,7 +79,9 @@ class FramePlacer:
         max_wait_s: float = 1.0,
         cache_time_s: float = 30.0,
         clock: Callable[[], float] = time.monotonic,
+        auto_root: bool = True,
     ) -> None:
+        self._auto_root = auto_root
         if fixed_frame is not None and (not fixed_frame or fixed_frame.startswith("/")):
             text = (
                 f"fixed frame {fixed_frame!r} is not a TF frame id: give a name without a "
@@ -153,7 +155,7 @@ class FramePlacer:
         return self._fixed
 
     def _resolve_fixed(self, frame: str) -> str | None:
-        if self._fixed is None and self.buffer.has_frame(frame):
+        if self._fixed is None and self._auto_root and self.buffer.has_frame(frame):
             self._fixed = self.root_of(frame)
         return self._fixed
 

@@ -11,8 +11,9 @@ Entities: ``<root>/robot_model/<robot>/<link>`` (the link's pose) and
 ``.../<link>/visual_<i>`` (the visual's origin and geometry: ``Boxes3D``,
 ``Cylinders3D``, ``Ellipsoids3D`` for spheres, ``Capsules3D``, ``Asset3D`` for
 ``.stl`` / ``.obj`` / ``.glb`` / ``.gltf`` meshes, scaled by the mesh's ``scale``).
-A mesh Rerun cannot read (MuJoCo's ``.msh``) is drawn as nothing and named once in
-the log; Collada (``.dae``) meshes are left out by the URDF reader, with its warning.
+Collada (``.dae``) and MuJoCo ``.msh`` meshes, which Rerun does not read, are read by
+visnav's mesh reader into one ``Mesh3D`` with their parts' colours; one that does not read
+is drawn as nothing and named once in the log.
 A link without a transform to the fixed frame is left where it was last placed (RViz
 greys it out; Rerun keeps it).
 """
@@ -159,7 +160,36 @@ def _archetype(visual: LinkVisual) -> Any | None:
         return rr.Ellipsoids3D(half_sizes=[[r, r, r]], colors=color, fill_mode="solid")
     if visual.mesh_path.lower().endswith(MESH_FORMATS):
         return rr.Asset3D(path=visual.mesh_path, albedo_factor=_rgba8(visual.rgba))
+    if visual.mesh_path:  # Collada, MSH: triangles read by visnav's mesh reader
+        return _read_mesh(visual)
     return None
+
+
+def _read_mesh(visual: LinkVisual) -> Any | None:
+    """A mesh Rerun cannot load itself as one ``Mesh3D`` with its parts' colours."""
+    from visnav.description.mesh_files import load_mesh  # noqa: PLC0415 (trimesh, on use)
+
+    try:
+        data = load_mesh(visual.mesh_path)
+    except (VisnavError, ValueError, OSError) as exc:
+        _LOG.warning(
+            "robot model: mesh %s of link %s not shown: %s", visual.mesh_path, visual.link, exc
+        )
+        return None
+    if not data.parts:
+        return None
+    offsets = np.cumsum([0, *(len(p.vertices) for p in data.parts)])[:-1]
+    verts = np.concatenate([p.vertices for p in data.parts]).astype(np.float32)
+    faces = np.concatenate([p.faces + o for p, o in zip(data.parts, offsets, strict=True)])
+    colors = np.concatenate(
+        [
+            np.tile(_rgba8(p.rgba if p.rgba is not None else visual.rgba), (len(p.vertices), 1))
+            for p in data.parts
+        ]
+    ).astype(np.uint8)
+    return rr.Mesh3D(
+        vertex_positions=verts, triangle_indices=faces.astype(np.uint32), vertex_colors=colors
+    )
 
 
 class RobotModel:

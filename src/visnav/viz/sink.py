@@ -39,6 +39,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from visnav.description.worldmodel import WorldDescription
 from visnav.errors import VisnavError
 from visnav.msgs.image import image_to_numpy
 from visnav.msgs.time import time_to_ns
@@ -52,6 +53,7 @@ from visnav.viz.layout import default_blueprint
 from visnav.viz.markers import DELETE, DELETEALL, MESH_RESOURCE, marker_archetypes
 from visnav.viz.placement import FramePlacer
 from visnav.viz.robot_model import RobotModel, parse_robot_description
+from visnav.viz.world_view import log_world
 
 __all__ = ["SUPPORTED_TYPES", "RerunSink", "shows"]
 
@@ -108,10 +110,32 @@ _PIXEL_FORMATS = {
 }
 _DEPTH_METER = {"32FC1": 1.0, "16UC1": 1000.0}
 _KEY_SEP = "\x00"
+_PREFERRED_FIXED = ("map", "odom", "world")
+_ROOT_AFTER_NS = 1_000_000_000  # TF stamp time seen before the root is taken as fixed frame
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 _SCAN_COLOR = (255, 64, 64)
 _POSE_COLOR = (255, 40, 40)
 _PATH_COLOR = (40, 200, 255)
+
+
+def _jpeg(rgb: NDArray[np.uint8], quality: int) -> Any:
+    """An RGB (or grey) image as a JPEG ``EncodedImage`` (OpenCV releases the GIL)."""
+    import cv2  # noqa: PLC0415 (OpenCV is a dependency; loaded with the first image)
+
+    bgr = rgb[..., ::-1] if rgb.ndim == 3 else rgb
+    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(bgr), [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        text = f"OpenCV could not JPEG-encode a {rgb.shape} {rgb.dtype} image"
+        raise VizError(text)
+    return rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg")
+
+
+def _depth_archetype(array: NDArray[Any], encoding: str) -> Any:
+    """Depth as 16-bit millimetres (half the bytes of 32FC1; 0 = no return)."""
+    if encoding == "32FC1":
+        mm = np.nan_to_num(np.asarray(array, dtype=np.float32) * 1000.0, nan=0.0, posinf=0.0)
+        return rr.DepthImage(np.clip(mm, 0, 65535).astype(np.uint16), meter=1000.0)
+    return rr.DepthImage(array, meter=_DEPTH_METER.get(encoding, 1.0))
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -130,7 +154,8 @@ class RerunSink:
         recording: the ``rerun.RecordingStream`` to log to (see
             :func:`visnav.viz.open_viewer` for one with file / web sinks).
         fixed_frame: the frame everything is shown in (RViz's *Fixed Frame*); None picks
-            the root of the TF tree of the first frame seen.
+            ``map``, else ``odom``, else ``world`` once TF has it, else the root of the
+            TF tree of the first message placed.
         max_points: clouds are decimated to at most this many points (None: all).
         root: the entity of the fixed frame.
         timeline: the timeline of the message stamps.
@@ -145,6 +170,9 @@ class RerunSink:
             cameras appear.
         tf_prefix: the robot model's TF prefix (RViz's RobotModel *TF Prefix*).
         packages: package name -> directory for the robot model's ``package://`` meshes.
+        jpeg_quality: colour images are sent JPEG-compressed at this quality (1-100), as
+            ``EncodedImage`` (a 640x480 frame is ~30 KB instead of 900 KB); None sends
+            them raw. Depth images are sent as 16-bit millimetres.
     """
 
     def __init__(
@@ -157,20 +185,27 @@ class RerunSink:
         timeline: str = "ros_time",
         queue_size: int = 10,
         tf_axis_length: float = 0.25,
-        tf_period_s: float = 0.05,
+        tf_period_s: float = 0.2,
         arrow_length: float = 0.5,
         path_keep: int = 2000,
         strict: bool = False,
         layout: bool = True,
         tf_prefix: str = "",
         packages: Mapping[str, str] | None = None,
+        jpeg_quality: int | None = 80,
     ) -> None:
+        if jpeg_quality is not None and not 1 <= jpeg_quality <= 100:
+            text = f"jpeg_quality is {jpeg_quality}: expected 1..100 (or None for raw images)"
+            raise VizError(text)
+        self._jpeg_quality = jpeg_quality
         if max_points is not None and max_points < 1:
             text = f"max_points is {max_points}: expected at least 1 (or None for every point)"
             raise VizError(text)
         self.recording = recording
         self._packages = dict(packages or {})  # package:// meshes of robot_description
-        self.placer = FramePlacer(fixed_frame, queue_size=queue_size)
+        # no fixed frame given: chosen from TF (see _tf), not from the first data message
+        self.placer = FramePlacer(fixed_frame, queue_size=queue_size, auto_root=False)
+        self._first_tf_ns: int | None = None
         self._max_points = max_points
         self._root = root.strip("/") or "world"
         self._timeline = timeline
@@ -193,6 +228,8 @@ class RerunSink:
         self._layout = layout
         self._tf_prefix = tf_prefix
         self._cameras: list[str] = []
+        self.world_paths: list[str] = []
+        """Entities of the world's geometry (:meth:`log_world`)."""
         self.robot_models: dict[str, RobotModel] = {}
         """The robot model of each robot_description topic."""
         self.counts: dict[str, int] = {}
@@ -253,7 +290,9 @@ class RerunSink:
             self.types.setdefault(topic, type_name)
             handler = self._handlers.get(type_name) if shows(topic, type_name) else None
             if handler is None:
-                self._warn_once(topic, "type", f"{topic}: type {type_name} is not shown")
+                if (topic, "type") not in self._warned:  # listed in stats(): no warning
+                    self._warned.add((topic, "type"))
+                    _LOG.debug("%s: type %s is not shown", topic, type_name)
                 return False
             t = _stamp_ns(msg) or (stamp_ns if stamp_ns is not None else self._last_ns)
             self._last_ns = max(self._last_ns, t)
@@ -267,6 +306,16 @@ class RerunSink:
                 return False
             self.counts[topic] = self.counts.get(topic, 0) + 1
             return True
+
+    def log_world(self, world: WorldDescription) -> list[str]:
+        """Show the world's geometry (static, in the fixed frame = the simulator's world).
+
+        Returns:
+            The entity paths logged (``world/scene/...``).
+        """
+        with self._lock:
+            self.world_paths = log_world(self.recording, world, root=self._root)
+        return self.world_paths
 
     def log_error(self, topic: str, type_name: str, reason: str) -> None:
         """Count a message of ``topic`` that could not even be decoded (warned once per topic).
@@ -293,6 +342,9 @@ class RerunSink:
     def close(self) -> None:
         """Place or drop everything still waiting for TF, and flush the recording."""
         with self._lock:
+            if self.placer.fixed_frame is None and self._tf_frames:
+                self.placer.choose_fixed(next(iter(self._tf_frames)))
+                self.placer.expire()
             self.placer.expire(force=True)
         self.recording.flush()
 
@@ -350,8 +402,15 @@ class RerunSink:
         for tr in msg.transforms:
             self._tf_frames.setdefault(tr.header.frame_id.lstrip("/"), None)
             self._tf_frames.setdefault(tr.child_frame_id.lstrip("/"), None)
-        if self.placer.fixed_frame is None and self._tf_frames:
-            self.placer.choose_fixed(next(iter(self._tf_frames)))
+        if self.placer.fixed_frame is None:
+            # RViz's usual fixed frames first; else the TF root once data need placing
+            preferred = [f for f in _PREFERRED_FIXED if f in self._tf_frames]
+            if self._first_tf_ns is None:
+                self._first_tf_ns = t
+            if preferred:
+                self.placer.choose_fixed(preferred[0])
+            elif t - self._first_tf_ns >= _ROOT_AFTER_NS and self._tf_frames:
+                self.placer.choose_fixed(next(iter(self._tf_frames)))
         if static or self._tf_logged_ns is None or t - self._tf_logged_ns >= self._tf_period_ns:
             self._tf_logged_ns = t
             self._log_tf_frames(t)
@@ -395,7 +454,7 @@ class RerunSink:
         camera = f"{self._root}/cameras/{rr.escape_entity_path_part(ns.strip('/') or 'camera')}"
         leaf = topic[len(ns) :] if topic.startswith(ns) else topic
         leaf_parts = [rr.escape_entity_path_part(p) for p in leaf.split("/") if p]
-        if camera not in self._cameras:
+        if image and camera not in self._cameras:  # a pane once it has an image to show
             self._cameras.append(camera)
             if self._layout:
                 self.recording.send_blueprint(default_blueprint(self._root, self._cameras))
@@ -411,12 +470,12 @@ class RerunSink:
     def _image(self, topic: str, msg: Any, t: int) -> None:
         camera, entity = self._camera_paths(topic, image=True)
         self._at(t)
-        self.recording.log(entity, self._image_archetype(msg))
+        self.recording.log(entity, self._image_archetype(msg, self._jpeg_quality))
         if camera not in self._cameras_with_info:
             self._place_camera(topic, camera, msg.header, t)
 
     @staticmethod
-    def _image_archetype(msg: Any) -> Any:
+    def _image_archetype(msg: Any, jpeg_quality: int | None = None) -> Any:
         encoding = msg.encoding
         if encoding in _PIXEL_FORMATS:
             data = np.asarray(image_to_numpy(msg))
@@ -428,7 +487,9 @@ class RerunSink:
             )
         array = image_to_numpy(msg)
         if encoding in _DEPTH_METER:
-            return rr.DepthImage(array, meter=_DEPTH_METER[encoding])
+            return _depth_archetype(array, encoding)
+        if jpeg_quality is not None:
+            return _jpeg(image_to_display(array, encoding), jpeg_quality)
         if encoding in _COLOR_MODELS:
             return rr.Image(array, color_model=_COLOR_MODELS[encoding])
         return rr.Image(image_to_display(array, encoding), color_model="RGB")
@@ -437,15 +498,15 @@ class RerunSink:
         camera, entity = self._camera_paths(topic, image=True)
         if "compressedDepth" in msg.format:
             depth = decompress_depth(msg)
-            archetype: Any = rr.DepthImage(
-                image_to_numpy(depth), meter=_DEPTH_METER.get(depth.encoding, 1.0)
-            )
+            archetype: Any = _depth_archetype(image_to_numpy(depth), depth.encoding)
         else:
             data = np.asarray(msg.data, dtype=np.uint8).tobytes()
             if data[:2] == b"\xff\xd8":
                 archetype = rr.EncodedImage(contents=data, media_type="image/jpeg")
             elif data[:8] == _PNG_MAGIC:
                 archetype = rr.EncodedImage(contents=data, media_type="image/png")
+            elif self._jpeg_quality is not None:
+                archetype = _jpeg(message_to_display(msg), self._jpeg_quality)
             else:
                 archetype = rr.Image(message_to_display(msg), color_model="RGB")
         self._at(t)

@@ -18,17 +18,18 @@ from visnav.graph.context import Context
 from visnav.graph.introspect import new_published_topics, subscription_qos_for
 from visnav.graph.node import Node
 from visnav.msgs.serde import get_message_class
-from visnav.tf.ros import DYNAMIC_QOS, STATIC_QOS
+from visnav.tf.ros import DYNAMIC_QOS, STATIC_LISTENER_QOS
+from visnav.viz.display_sink import DisplaySink
 from visnav.viz.sink import RerunSink, shows
 
 __all__ = ["LiveFeed", "feed_bag"]
 
 _LOG = logging.getLogger("visnav.viz")
-_TF_TOPICS = {"/tf": DYNAMIC_QOS, "/tf_static": STATIC_QOS}
+_TF_TOPICS = {"/tf": DYNAMIC_QOS, "/tf_static": STATIC_LISTENER_QOS}  # all broadcasters' sets
 
 
 def feed_bag(
-    sink: RerunSink,
+    sink: RerunSink | DisplaySink,
     path: str | Path,
     *,
     topics: Sequence[str] | None = None,
@@ -87,17 +88,21 @@ class LiveFeed:
             of a type the sink shows.
         node_name: name of the (hidden) viewer node.
         rescan_s: how often the graph is re-read for new topics.
+        accept: ``accept(topic, type)`` false leaves a topic out for now (asked again
+            at the next scan).
     """
 
     def __init__(
         self,
-        sink: RerunSink,
+        sink: RerunSink | DisplaySink,
         context: Context,
         *,
         topics: Collection[str] | None = None,
         node_name: str | None = None,
         rescan_s: float = 1.0,
+        accept: Callable[[str, str], bool] | None = None,
     ) -> None:
+        self._accept = accept
         self.sink = sink
         self.context = context
         self.node = Node(node_name or f"_visnav_viewer_{os.getpid()}", context=context)
@@ -137,6 +142,8 @@ class LiveFeed:
             if self._wanted is not None and topic not in self._wanted:
                 continue
             if self._wanted is None and not shows(topic, types[0]):
+                continue
+            if self._accept is not None and not self._accept(topic, types[0]):
                 continue
             self._subscribe(topic, types[0], subscription_qos_for(self.context, topic))
             new.append(topic)

@@ -3,11 +3,15 @@
 :func:`open_viewer` makes a ``rerun.RecordingStream`` with the chosen sinks:
 
 * ``save``: a ``FileSink`` (the ``.rrd`` opens in any Rerun viewer of the same version);
-* ``web``: a gRPC server *in this process* bound to 127.0.0.1 (``GrpcServerSink`` takes
-  a bind address) and Rerun's bundled web viewer (HTML + WebAssembly) served by the
-  ``rerun`` executable of the wheel, started with ``--bind 127.0.0.1``. The Python
-  ``rerun.serve_web_viewer`` has no bind address in rerun-sdk 0.41 and listens on
-  0.0.0.0, which is why the executable serves the page;
+* ``web``: the ``rerun`` executable of the wheel, started with ``--serve-web --bind
+  127.0.0.1``, serves Rerun's bundled web viewer (HTML + WebAssembly) on port
+  :data:`DEFAULT_WEB_PORT` (9090) and its gRPC server on :data:`DEFAULT_GRPC_PORT` (9876),
+  and this process streams to that server. The server keeps at most ``memory_limit``
+  (default :data:`DEFAULT_MEMORY_LIMIT`, 512 MB) for pages that connect late, dropping the
+  oldest data beyond it; its own log lines (Rerun's warnings, e.g. "Sender has been
+  blocked") go to ``log_path``, never to the terminal. Nothing is written to disk but that
+  log unless ``save`` is given. (The Python ``rerun.serve_web_viewer`` has no bind address
+  in rerun-sdk 0.41 and listens on 0.0.0.0, which is why the executable serves the page.);
 * ``connect``: stream to a running viewer (``rerun+http://HOST:PORT/proxy``);
 * none of these: spawn the native viewer (needs a display).
 """
@@ -31,10 +35,28 @@ from typing import IO, Any
 from visnav.viz._rerun import rr
 from visnav.viz.errors import VizError
 
-__all__ = ["LOOPBACK", "Viewer", "free_port", "open_viewer", "rerun_executable"]
+__all__ = [
+    "DEFAULT_GRPC_PORT",
+    "DEFAULT_MEMORY_LIMIT",
+    "DEFAULT_WEB_PORT",
+    "LOOPBACK",
+    "Viewer",
+    "free_port",
+    "open_viewer",
+    "rerun_executable",
+]
 
 LOOPBACK = "127.0.0.1"
 """The only address the web viewer and its gRPC server listen on."""
+
+DEFAULT_WEB_PORT = 9090
+"""The web viewer page's port (Rerun's own default; ``--port`` changes it)."""
+
+DEFAULT_GRPC_PORT = 9876
+"""The gRPC server's port (Rerun's own default; ``--grpc-port`` changes it)."""
+
+DEFAULT_MEMORY_LIMIT = "512MB"
+"""What the gRPC server keeps for late viewers; the oldest data beyond it are dropped."""
 
 
 def free_port(host: str = LOOPBACK) -> int:
@@ -96,6 +118,7 @@ class Viewer:
         grpc_url: the gRPC address viewers connect to (``--web``), else None.
         save: the ``.rrd`` file written, else None.
         web_process: the process serving the web viewer page, else None.
+        log_path: the web viewer's log (Rerun's own messages), else None.
     """
 
     def __init__(
@@ -107,7 +130,9 @@ class Viewer:
         save: Path | None = None,
         web_process: subprocess.Popen[bytes] | None = None,
         web_log: IO[bytes] | None = None,
+        log_path: Path | None = None,
     ) -> None:
+        self.log_path = log_path
         self.recording = recording
         self.url = url
         self.grpc_url = grpc_url
@@ -153,36 +178,83 @@ def _has_display() -> bool:
     return True
 
 
+def _check_port(port: int, what: str, option: str) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind((LOOPBACK, port))
+        except OSError as exc:
+            text = (
+                f"the {what} port {LOOPBACK}:{port} is in use ({exc.strerror}): another viewer "
+                f"(visnav view, visnav run --view) may be serving there; stop it or give {option} N"
+            )
+            raise VizError(text) from None
+
+
+def _start_web(
+    web_port: int, grpc_port: int, memory_limit: str, log_path: Path, timeout_s: float
+) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+    log_file = log_path.open("ab")
+    cmd = [
+        str(rerun_executable()),
+        "--serve-web",
+        "--bind",
+        LOOPBACK,
+        "--web-viewer-port",
+        str(web_port),
+        "--port",
+        str(grpc_port),
+        "--server-memory-limit",
+        memory_limit,
+    ]
+    env = {**os.environ, "RERUN_ANALYTICS": "0"}
+    process = subprocess.Popen(
+        cmd, stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env
+    )
+    try:
+        _wait_listening(web_port, process, log_path, timeout_s)
+        _wait_listening(grpc_port, process, log_path, timeout_s)
+    except VizError:
+        process.kill()
+        process.wait()
+        log_file.close()
+        raise
+    return process, log_file
+
+
 def open_viewer(
     *,
     application_id: str = "visnav",
     save: str | Path | None = None,
     web: bool = False,
-    web_port: int | None = None,
-    grpc_port: int | None = None,
+    port: int | None = DEFAULT_WEB_PORT,
+    grpc_port: int | None = DEFAULT_GRPC_PORT,
     connect: str | None = None,
     spawn: bool | None = None,
-    server_memory_limit: str = "25%",
+    memory_limit: str = DEFAULT_MEMORY_LIMIT,
+    log_path: str | Path | None = None,
     startup_timeout_s: float = 20.0,
 ) -> Viewer:
     """Create a recording streaming to the chosen outputs.
 
     Args:
         application_id: Rerun's application id (groups recordings in the viewer).
-        save: write the recording to this ``.rrd`` file.
+        save: write the recording to this ``.rrd`` file (nothing is written otherwise).
         web: serve the web viewer and a gRPC server, both on 127.0.0.1 only.
-        web_port: port of the web viewer page (default: a free one).
-        grpc_port: port of the gRPC server (default: a free one).
+        port: port of the web viewer page (0 or None: a free one).
+        grpc_port: port of the gRPC server (0 or None: a free one).
         connect: stream to a running viewer at this ``rerun+http://.../proxy`` URL.
         spawn: start the native viewer; default: when nothing else is asked for.
-        server_memory_limit: what the gRPC server keeps for late viewers ("25%", "2GB").
+        memory_limit: what the gRPC server keeps for late viewers ("512MB", "10%").
+        log_path: the web viewer's log file (default: ``visnav-viewer-<port>.log`` in
+            the temporary directory).
         startup_timeout_s: how long to wait for the web viewer to listen.
 
     Returns:
         The :class:`Viewer`; its ``url`` is the page to open with ``web``.
 
     Raises:
-        VizError: a bad path, no display for the native viewer, a viewer that fails to start.
+        VizError: a bad path, a port in use, no display for the native viewer, a viewer
+            that fails to start.
     """
     rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
     rec.set_log_time_enabled(False)
@@ -197,21 +269,33 @@ def open_viewer(
         if not save_path.parent.is_dir():
             text = f"--save {str(save_path)!r}: directory {str(save_path.parent)!r} does not exist"
             raise VizError(text)
-        sinks.append(rr.FileSink(save_path))
-    if connect is not None:
-        sinks.append(rr.GrpcSink(connect))
     url = grpc_url = None
     process: subprocess.Popen[bytes] | None = None
     log_file: IO[bytes] | None = None
+    log: Path | None = None
     if web:
+        wport = port or free_port()
         gport = grpc_port or free_port()
-        server = rr.GrpcServerSink(
-            LOOPBACK, gport, server_memory_limit=server_memory_limit, newest_first=False
-        )
-        sinks.append(server)
+        if wport == gport:
+            text = f"--port and --grpc-port are both {wport}: give two different ports"
+            raise VizError(text)
+        _check_port(wport, "web viewer", "--port")
+        _check_port(gport, "viewer's gRPC", "--grpc-port")
+        default_log = Path(tempfile.gettempdir()) / f"visnav-viewer-{wport}.log"
+        log = Path(log_path) if log_path is not None else default_log
+        process, log_file = _start_web(wport, gport, memory_limit, log, startup_timeout_s)
         grpc_url = f"rerun+http://{LOOPBACK}:{gport}/proxy"
+        url = f"http://{LOOPBACK}:{wport}/?url={urllib.parse.quote(grpc_url, safe='')}"
+        sinks.append(rr.GrpcSink(grpc_url))
+    if save_path is not None:
+        sinks.append(rr.FileSink(save_path))
+    if connect is not None:
+        sinks.append(rr.GrpcSink(connect))
     want_spawn = spawn if spawn is not None else not sinks
     if want_spawn and not _has_display():
+        if process is not None:
+            process.kill()
+            process.wait()
         text = (
             "no display for the native Rerun viewer: use --web (browser at 127.0.0.1) "
             "or --save FILE.rrd"
@@ -221,29 +305,12 @@ def open_viewer(
         rec.set_sinks(*sinks)
     if want_spawn:
         rec.spawn()
-    if web and grpc_url is not None:
-        wport = web_port or free_port()
-        log_path = Path(tempfile.gettempdir()) / f"visnav_rerun_web_{os.getpid()}_{wport}.log"
-        log_file = log_path.open("wb")
-        cmd = [
-            str(rerun_executable()),
-            "--serve-web",
-            "--bind",
-            LOOPBACK,
-            "--web-viewer-port",
-            str(wport),
-            grpc_url,
-        ]
-        process = subprocess.Popen(cmd, stdout=log_file, stderr=subprocess.STDOUT)
-        try:
-            _wait_listening(wport, process, log_path, startup_timeout_s)
-        except VizError:
-            process.kill()
-            process.wait()
-            log_file.close()
-            rec.disconnect()
-            raise
-        url = f"http://{LOOPBACK}:{wport}/?url={urllib.parse.quote(grpc_url, safe='')}"
     return Viewer(
-        rec, url=url, grpc_url=grpc_url, save=save_path, web_process=process, web_log=log_file
+        rec,
+        url=url,
+        grpc_url=grpc_url,
+        save=save_path,
+        web_process=process,
+        web_log=log_file,
+        log_path=log,
     )

@@ -1,0 +1,138 @@
+"""``LiveView``: the graph of a running context streamed to the web viewer, kept light.
+
+What ``visnav run --view``, ``visnav view`` (live) and the ``viewer`` node share: the web
+viewer on fixed loopback ports (:func:`~visnav.viz.viewer.open_viewer`), a
+:class:`~visnav.viz.RerunSink` behind a :class:`~visnav.viz.display_sink.DisplaySink`
+(display rate, worker thread, JPEG images, decimated clouds), the simulator's world
+geometry (:func:`~visnav.viz.scene.world_from_graph`) and a
+:class:`~visnav.viz.LiveFeed` that subscribes to every topic shown. Nothing is written
+to disk but the viewer's log unless ``save`` is given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping
+from pathlib import Path
+from types import TracebackType
+
+from visnav.graph.context import Context
+from visnav.viz.display_sink import DisplaySink
+from visnav.viz.sink import RerunSink
+from visnav.viz.sources import LiveFeed
+from visnav.viz.viewer import DEFAULT_GRPC_PORT, DEFAULT_MEMORY_LIMIT, DEFAULT_WEB_PORT, open_viewer
+
+__all__ = ["RENDERED_TYPES", "LiveView"]
+
+RENDERED_TYPES = frozenset(
+    {"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage", "sensor_msgs/msg/PointCloud2"}
+)
+"""Types the simulator produces only for subscribers (cameras, depth clouds)."""
+
+
+class LiveView:
+    """Streams a context's topics to a viewer (see the module docstring); close it.
+
+    Args:
+        context: the graph context to join.
+        web: serve the web viewer (else spawn the native one, or only ``save``).
+        port: the web page's port (0: a free one).
+        grpc_port: the gRPC server's port (0: a free one).
+        save: also write this ``.rrd`` file.
+        memory_limit: what the viewer's server keeps for late pages.
+        log_path: the viewer's own log (Rerun's messages).
+        fixed_frame: the frame shown (default: the TF root).
+        topics: only these topics (plus TF).
+        max_points: clouds decimated to this many points.
+        world: draw the simulator's world geometry (asks the ``sim`` node).
+        packages: ``package://`` directories for the robot model.
+        sensors_in_use_only: show an image or cloud topic (:data:`RENDERED_TYPES`) only
+            once another node subscribes to it: the simulator renders a camera (and
+            computes its cloud) only when it has a subscriber, so a viewer subscribing
+            on its own would make a run render, and slow down, for display alone.
+            ``visnav run --view`` sets it; ``visnav view`` and the ``viewer`` node show
+            every topic, as RViz does. Topics named in ``topics`` are always shown.
+    """
+
+    def __init__(
+        self,
+        context: Context,
+        *,
+        web: bool = True,
+        port: int = DEFAULT_WEB_PORT,
+        grpc_port: int = DEFAULT_GRPC_PORT,
+        save: str | Path | None = None,
+        memory_limit: str = DEFAULT_MEMORY_LIMIT,
+        log_path: str | Path | None = None,
+        fixed_frame: str | None = None,
+        topics: Collection[str] | None = None,
+        max_points: int | None = 20_000,
+        world: bool = True,
+        packages: Mapping[str, str] | None = None,
+        sensors_in_use_only: bool = False,
+    ) -> None:
+        from visnav.viz.scene import world_from_graph  # noqa: PLC0415 - parameter client
+
+        self.viewer = open_viewer(
+            web=web,
+            port=port,
+            grpc_port=grpc_port,
+            save=save,
+            memory_limit=memory_limit,
+            log_path=log_path,
+        )
+        try:
+            rerun_sink = RerunSink(
+                self.viewer.recording,
+                fixed_frame=fixed_frame,
+                max_points=max_points,
+                packages=packages,
+            )
+            accept = self._in_use if sensors_in_use_only and topics is None else None
+            self.feed = LiveFeed(rerun_sink, context, topics=topics, accept=accept)
+            node = self.feed.node
+            loader = (lambda: world_from_graph(node)) if world else None
+            self.sink = DisplaySink(rerun_sink, world_loader=loader)
+            self.feed.sink = self.sink
+        except BaseException:
+            self.viewer.close()
+            raise
+        self._closed = False
+
+    def _in_use(self, topic: str, type_name: str) -> bool:
+        if type_name not in RENDERED_TYPES:
+            return True
+        me = self.feed.node.get_name()
+        endpoints = self.feed.context.graph.endpoints(topic)
+        return any(e.kind == "subscription" and e.node_name != me for e in endpoints)
+
+    @property
+    def url(self) -> str | None:
+        """The web viewer's page (None without ``web``)."""
+        return self.viewer.url
+
+    def poll(self) -> None:
+        """Subscribe to new topics, expire data that waited too long for TF."""
+        self.feed.scan()
+        self.sink.poll()
+
+    def close(self) -> None:
+        """Stop the feed, log what is queued, close the viewer (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self.feed.close()
+            self.sink.close()
+        finally:
+            self.viewer.close()
+
+    def __enter__(self) -> LiveView:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
