@@ -13,13 +13,13 @@ from visnav.scenarios import report_plots
 def figures(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
     """The figures the plot functions save, kept for inspection."""
     kept: list[Any] = []
-    save = report_plots._png
+    save = report_plots.figure_png
 
     def keep(fig: Any) -> bytes:
         kept.append(fig)
         return save(fig)
 
-    monkeypatch.setattr(report_plots, "_png", keep)
+    monkeypatch.setattr(report_plots, "figure_png", keep)
     return kept
 
 

@@ -14,20 +14,27 @@ import math
 import textwrap
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from visnav.scenarios.runner import SCENARIOS
 
+if TYPE_CHECKING:
+    from visnav.description.worldmodel import WorldDescription
+
 __all__ = [
     "TRAJECTORY_TOPICS",
     "distribution_png",
+    "figure_png",
+    "fit_title",
+    "new_figure",
     "read_trajectory",
     "success_png",
     "trajectories_png",
     "world_map",
+    "world_occupancy",
 ]
 
 TRAJECTORY_TOPICS = {"car": "/ground_truth/odom", "drone": "/drone/odom"}
@@ -37,13 +44,14 @@ _DPI = 100
 _MAX_POINTS = 2000
 
 
-def _figure(width_in: float, height_in: float) -> Any:
+def new_figure(width_in: float, height_in: float) -> Any:
+    """A matplotlib Figure of that size in inches (Agg, no pyplot)."""
     from matplotlib.figure import Figure  # noqa: PLC0415 - no pyplot: no global state
 
     return Figure(figsize=(width_in, height_in), dpi=_DPI)
 
 
-def _fit_title(fig: Any, ax: Any, text: str, **kwargs: Any) -> None:
+def fit_title(fig: Any, ax: Any, text: str, **kwargs: Any) -> None:
     """Set the axes' title and lay the figure out, the title wrapped until it fits.
 
     A title is centred over its axes, which the y label pushes right: on a narrow figure
@@ -62,7 +70,8 @@ def _fit_title(fig: Any, ax: Any, text: str, **kwargs: Any) -> None:
         per_line = max(8, min(per_line - 1, math.floor(longest * room / box.width)))
 
 
-def _png(fig: Any) -> bytes:
+def figure_png(fig: Any) -> bytes:
+    """The figure as PNG bytes."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=_DPI)
     return buf.getvalue()
@@ -72,7 +81,7 @@ def success_png(
     labels: Sequence[str], rates: Sequence[float], intervals: Sequence[tuple[float, float]]
 ) -> bytes:
     """Bar chart of the success rate per setting with its 95 % Wilson interval."""
-    fig = _figure(max(4.0, 1.2 * len(labels) + 2.0), 3.2)
+    fig = new_figure(max(4.0, 1.2 * len(labels) + 2.0), 3.2)
     ax = fig.add_subplot()
     x = np.arange(len(labels))
     lo = [max(0.0, r - i[0]) for r, i in zip(rates, intervals, strict=True)]
@@ -87,15 +96,15 @@ def success_png(
     ax.set_xticks(x, [textwrap.fill(lbl, 18) for lbl in labels], fontsize=8)
     ax.set_ylim(0, 105)
     ax.set_ylabel("successful runs (%)")
-    _fit_title(fig, ax, "success per setting (95 % Wilson interval)")
-    return _png(fig)
+    fit_title(fig, ax, "success per setting (95 % Wilson interval)")
+    return figure_png(fig)
 
 
 def distribution_png(
     title: str, unit: str, labels: Sequence[str], values: Sequence[Sequence[float]]
 ) -> bytes:
     """Box plot per setting with every run's value drawn over it."""
-    fig = _figure(max(4.0, 1.2 * len(labels) + 2.0), 3.2)
+    fig = new_figure(max(4.0, 1.2 * len(labels) + 2.0), 3.2)
     ax = fig.add_subplot()
     data = [list(v) for v in values]
     ax.boxplot(data, showfliers=False)
@@ -106,8 +115,8 @@ def distribution_png(
         np.arange(1, len(labels) + 1), [textwrap.fill(lb, 18) for lb in labels], fontsize=8
     )
     ax.set_ylabel(unit)
-    _fit_title(fig, ax, title)
-    return _png(fig)
+    fit_title(fig, ax, title)
+    return figure_png(fig)
 
 
 def read_trajectory(bag: Path, scenario: str) -> npt.NDArray[np.float64] | None:
@@ -137,14 +146,25 @@ def world_map(
 ) -> tuple[npt.NDArray[np.bool_], tuple[float, float, float, float]]:
     """The true occupancy of the scenario's world for ``seed`` and its extent (x0, x1, y0, y1)."""
     from visnav.description.world import load_world  # noqa: PLC0415 - heavy
-    from visnav.sim.world_geometry import true_occupancy_grid  # noqa: PLC0415
 
     sdef = SCENARIOS[scenario]
-    world = load_world(sdef.world, seed=seed)
-    if scenario == "drone":
-        res, band = 0.2, (0.5, 1.5)  # the flight height band (take-off to 1 m)
-    else:
-        res, band = 0.05, (0.05, 2.0)
+    return world_occupancy(load_world(sdef.world, seed=seed), flight=scenario == "drone")
+
+
+def world_occupancy(
+    world: WorldDescription, *, flight: bool = False
+) -> tuple[npt.NDArray[np.bool_], tuple[float, float, float, float]]:
+    """The true occupancy of a loaded world and its extent (x0, x1, y0, y1).
+
+    Args:
+        world: the world.
+        flight: the top view at the drone's flight height (0.5-1.5 m, 20 cm cells)
+            instead of the floor plan (5-200 cm above the ground, 5 cm cells).
+    """
+    from visnav.sim.world_geometry import true_occupancy_grid  # noqa: PLC0415 - heavy
+
+    # the flight height band: take-off to 1 m
+    res, band = (0.2, (0.5, 1.5)) if flight else (0.05, (0.05, 2.0))
     grid, origin = true_occupancy_grid(world, res, band)
     ny, nx = grid.shape
     return grid, (origin[0], origin[0] + nx * res, origin[1], origin[1] + ny * res)
@@ -161,7 +181,7 @@ def trajectories_png(scenario: str, runs: Sequence[dict[str, Any]], *, cols: int
     """
     cols = max(1, min(cols, len(runs)))
     rows = math.ceil(len(runs) / cols)
-    fig = _figure(3.0 * cols, 3.2 * rows)
+    fig = new_figure(3.0 * cols, 3.2 * rows)
     maps: dict[int, Any] = {}
     for i, run in enumerate(runs):
         ax = fig.add_subplot(rows, cols, i + 1)
@@ -198,4 +218,4 @@ def trajectories_png(scenario: str, runs: Sequence[dict[str, Any]], *, cols: int
                 side.set_color("#d62728")
                 side.set_linewidth(2.5)
     fig.tight_layout()
-    return _png(fig)
+    return figure_png(fig)
