@@ -24,23 +24,39 @@ from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.runner import SCENARIOS, launch_file, run_scenario
 from visnav.scenarios.saved_map import saved_map_launch_args
 
-RUN_KEYS = ("wall_duration_s", "real_time_factor", "bag", "topics", "sim_duration_s")
+RUN_KEYS = (
+    "wall_duration_s",
+    "real_time_factor",
+    "bag",
+    "topics",
+    "sim_duration_s",
+    "end_reason",
+    "bag_bytes",
+    "bag_images",
+    "bag_mb_per_sim_s",
+)
 """Keys of the run, not the task: `visnav launch` has no bag, and its observer's sim time is
-the last /clock it received (one physics step before the end)."""
+the last /clock it received (one physics step before the end); it says why it ended."""
 
 
 def _nodes(name: str, **args: str) -> dict[str, object]:
     return {n.name: n for n in load_launch(launch_file(name), args).nodes}
 
 
-def test_builtin_scenarios_are_launch_files_shipped_in_the_package() -> None:
+def test_builtin_scenarios_are_launch_files_shipped_in_the_package(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the TurtleBot3 scenarios run ROBOTIS' packages, found on ROS_PACKAGE_PATH
+    tb3 = Path(__file__).resolve().parents[1] / "data" / "turtlebot3"
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tb3))
     for name in SCENARIOS:
         path = launch_file(name)
         assert path.is_file()
         assert path.parent.name == "launch"
         nodes = _nodes(name)
-        assert {"sim", "observer"} <= set(nodes)
-        sim = nodes["sim"]
+        assert "observer" in nodes
+        # the simulator (named gazebo where the scenario follows a gazebo_ros launch file)
+        (sim,) = (n for n in nodes.values() if n.executable == "sim")  # type: ignore[attr-defined]
         assert sim.params["lockstep"] is True  # type: ignore[attr-defined]
         assert sim.process == "shared"  # type: ignore[attr-defined]
 

@@ -10,6 +10,12 @@ from pathlib import Path
 from types import FrameType
 
 from visnav.launch.errors import LaunchArgError
+from visnav.logsetup import add_log_file, kernel_compilation_notice, remove_log_file
+from visnav.scenarios.run_control import (
+    record_status,
+    remove_refused_output,
+    scenario_output_arg,
+)
 
 __all__ = ["add_arguments", "cmd_launch", "parse_packages"]
 
@@ -117,12 +123,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
         # roslaunch PACKAGE FILE [args]
         file = find_package_launch_file(args.file, launch_args[0], packages=packages)
         launch_args = launch_args[1:]
-    description = load_launch(
-        file,
-        parse_launch_args(launch_args),
-        packages=packages,
-        skip_unmapped=args.skip_unmapped,
-    )
+    given = parse_launch_args(launch_args)
+    description = load_launch(file, given, packages=packages, skip_unmapped=args.skip_unmapped)
+    out = scenario_output_arg(description.args, given, [n.executable for n in description.nodes])
+    if out and not args.print_only:  # a scenario: its summary goes where `visnav run`'s would
+        given = {**given, "out": out}
+        description = load_launch(file, given, packages=packages, skip_unmapped=args.skip_unmapped)
     if args.skip_missing_models:
         description.nodes = [
             replace(node, params={**node.params, "skip_missing_models": True})
@@ -133,6 +139,11 @@ def cmd_launch(args: argparse.Namespace) -> int:
     if args.print_only:
         print(description.dumps() if args.json else description.format())
         return 0
+    from visnav.launch.sim_clock import follow_running_clock
+
+    clock_note = follow_running_clock(description, domain=args.domain)
+    if clock_note:
+        description.notes.append(clock_note)
     for note in description.notes:  # what the import mapped or left out: expected, not faults
         _LOG.info("%s", note)
     launcher = Launcher(
@@ -148,10 +159,38 @@ def cmd_launch(args: argparse.Namespace) -> int:
         interrupted.append(signum)
         launcher.request_stop()
 
+    out_dir = given.get("out", "") if "out" in description.args else ""
+    log_file = None
+    created = bool(out_dir) and not Path(out_dir).exists()
+    if out_dir:  # a scenario's folder gets the launch's whole log (DEBUG included)
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        log_file = add_log_file(Path(out_dir) / "run.log")
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        code = launcher.run()
+        with kernel_compilation_notice():
+            code = launcher.run()
+    except Exception:
+        if created and not (Path(out_dir) / "summary.json").exists():  # refused: no folder
+            if log_file is not None:
+                remove_log_file(log_file)
+            remove_refused_output(Path(out_dir), existed=False)
+        raise
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        if log_file is not None:
+            remove_log_file(log_file)
+    reason = (
+        f"{signal.Signals(interrupted[0]).name} (Ctrl-C)"
+        if interrupted and interrupted[0] == signal.SIGINT
+        else signal.Signals(interrupted[0]).name
+        if interrupted
+        else launcher.end_reason or "every node ended"
+    )
+    _LOG.info("launch ended: %s (exit code %d)", reason, 130 if interrupted else code)
+    if out_dir:
+        status = "interrupted" if interrupted else "failed" if code else "completed"
+        written = record_status(out_dir, status, reason=reason)
+        if written is not None:
+            _LOG.info("summary: %s (status %s)", written, status)
     return 130 if interrupted else code

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from visnav.outpaths import check_output_dir
+from visnav.scenarios.run_control import RunInterrupt
 from visnav.scenarios.runner import SCENARIOS, format_summary, run_scenario
 from visnav.scenarios.saved_map import MAP_LOCALIZATIONS, saved_map_launch_args
 
@@ -26,7 +28,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--record-images",
         action="store_true",
-        help="also record the camera images (for `visnav view BAG`), not the clouds",
+        help="also record the camera images (for `visnav view BAG`), not the clouds, through "
+        "compressed transport: <image topic>/compressed (JPEG), depth <topic>/compressedDepth",
+    )
+    parser.add_argument(
+        "--raw-images",
+        action="store_true",
+        help="record the camera images raw (sensor_msgs/Image: the car's bag ~6x bigger, "
+        "34 MB per simulated second); implies --record-images",
     )
     parser.add_argument("--realtime", action="store_true", help="pace to the wall clock")
     parser.add_argument("--view", action="store_true", help="stream to the Rerun web viewer")
@@ -62,24 +71,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Run the scenario and print the summary table."""
+    """Run the scenario and print the summary table (exit 130 after Ctrl-C, 1 if failed)."""
+    with RunInterrupt().installed() as interrupt:  # Ctrl-C: stop, summarise, exit 130
+        summary = _run(args, interrupt)
+    print(format_summary(summary))
+    return {"interrupted": 130, "failed": 1}.get(summary.get("status", ""), 0)
+
+
+def _run(args: argparse.Namespace, interrupt: RunInterrupt) -> dict[str, Any]:
     if args.out is not None:
         check_output_dir(args.out, what="the run's output directory (--out)")
     from visnav.graph.context import Context
 
     launch_args = (
         saved_map_launch_args(args.map, args.map_localization, slam=not args.no_slam, check=True)
+        if args.map and not args.scenario.startswith("tb3-")
+        else {"map": args.map}  # the TurtleBot3 scenarios: map_file of their launch files
         if args.map
         else {}
     )
     context = Context(args.domain) if getattr(args, "domain", None) is not None else None
-    summary = run_scenario(
+    return run_scenario(
         args.scenario,
         seed=args.seed,
         duration_s=args.duration,
         out=args.out,
         record_all=args.record_all,
-        record_images=args.record_images,
+        record_images=args.record_images or args.raw_images,
+        raw_images=args.raw_images,
         realtime=args.realtime,
         view=args.view,
         slam=not args.no_slam,
@@ -87,6 +106,5 @@ def cmd_run(args: argparse.Namespace) -> int:
         launch_args=launch_args,
         context=context,
         progress=None if args.quiet else sys.stderr,
+        interrupt=interrupt,
     )
-    print(format_summary(summary))
-    return 0

@@ -26,6 +26,8 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from visnav.logsetup import configure_logging, kernel_compilation_notice
+
 __all__ = ["main", "run_nodes"]
 
 _PR_SET_PDEATHSIG = 1
@@ -83,13 +85,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     _die_with_parent(data.get("parent_pid"))
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, _interrupt)
-    logging.basicConfig(level=logging.INFO, format="[%(levelname)s] %(message)s", stream=sys.stderr)
+    configure_logging(stream=sys.stderr)  # as the visnav command: library noise filtered
     from visnav.errors import VisnavError  # noqa: PLC0415
     from visnav.launch.description import NodeSpec  # noqa: PLC0415
 
     specs = [NodeSpec.from_json(n) for n in data["nodes"]]
     try:
-        run_nodes(specs, data.get("domain"))
+        with kernel_compilation_notice():
+            run_nodes(specs, data.get("domain"))
     except KeyboardInterrupt:
         return 0
     except VisnavError as exc:

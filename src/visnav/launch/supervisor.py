@@ -190,6 +190,8 @@ class Launcher:
         self._force = False
         self._failed = False
         self._exit_request: int | None = None
+        self.end_reason = ""
+        """Why :meth:`run` ended, for its last log line (``duration reached``, ...)."""
         self._started = False
         self._shut = False
         self._events_lock = threading.Lock()
@@ -200,6 +202,8 @@ class Launcher:
         if self._stop:
             self._force = True
         self._stop = True
+        if not self.end_reason:
+            self.end_reason = "stop requested"
 
     @property
     def stopping(self) -> bool:
@@ -233,7 +237,7 @@ class Launcher:
         self._tmp = Path(tempfile.mkdtemp(prefix="visnav-launch-"))
         try:
             for index, spec in enumerate(self.description.nodes):
-                if spec.process != "own":
+                if spec.process != "own" or self._stop:  # a stop request ends the start-up
                     continue
                 spec_file = self._tmp / f"{index:03d}.json"
                 spec_file.write_text(
@@ -277,6 +281,9 @@ class Launcher:
 
         self.context = self._given_context or Context(self.domain)
         for spec in shared:
+            if self._stop:  # Ctrl-C during the start-up: build no more nodes
+                _LOG.debug("start-up stopped before %s", spec.fqn)
+                return
             try:
                 node = classes[spec.fqn](spec.name, context=self.context, **spec.node_kwargs())
             except VisnavError as exc:
@@ -323,6 +330,7 @@ class Launcher:
         if spec.required or spec.on_error == "shutdown":
             why = "is required" if spec.required else "has on_error: shutdown"
             _LOG.error("%s %s: stopping the launch", child.name, why)
+            self.end_reason = f"{child.name} {describe_exit(code)} and {why}"
             self._failed = True
             child.done = True
             self._stop = True
@@ -400,22 +408,28 @@ class Launcher:
             last_poll = 0.0
             while not stopping():
                 if end is not None and time.monotonic() >= end:
+                    self._ended(f"duration reached ({duration_s:g} s)")
                     break
                 if self.context is not None:
                     try:
                         if driver is None:
                             self.context.spin_once(_SPIN_S)
                         elif not driver.run_lockstep(_LOCKSTEP_SLICE_S, until=stopping):
-                            break  # the lock-step simulation's duration is over
+                            if not stopping():  # the lock-step simulation's duration is over
+                                self._ended(f"duration reached ({driver.duration_s:g} s sim time)")
+                            break
                     except SystemExit as exc:  # a shared node ended the launch (sys.exit)
                         self._exit_request = exc.code if isinstance(exc.code, int) else 1
+                        self._ended(f"a node ended the launch (exit code {self._exit_request})")
                         break
                     except CallbackError as exc:
                         _LOG.error("%s has on_error: shutdown: stopping the launch", exc.node_name)
+                        self._ended(f"{exc.node_name} failed and has on_error: shutdown")
                         self._failed = True
                         break
                     except Exception:
                         _LOG.error("the shared nodes' executor failed: stopping every node")
+                        self._ended("the shared nodes' executor failed")
                         self._failed = True
                         raise
                 else:
@@ -425,10 +439,17 @@ class Launcher:
                     last_poll = now
                     self.poll()
                     if self._finished():
+                        self._ended("every node process ended")
                         break
+            if stop is not None and stop.is_set():
+                self._ended("stop requested")
         finally:
             self.shutdown()
         return self.exit_code
+
+    def _ended(self, reason: str) -> None:
+        if not self.end_reason:
+            self.end_reason = reason
 
     # ---------------------------------------------------------------- stop
     def _signal_all(self, sig: signal.Signals) -> None:

@@ -58,9 +58,13 @@ from visnav.tf.ros import TransformListener
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["CostmapNode", "MapperNode", "MapperParams"]
+__all__ = ["STARTUP_GRACE_S", "CostmapNode", "MapperNode", "MapperParams"]
 
 _DROP_LOG_PERIOD_S = 5.0  # at most one "dropped a scan" warning per 5 s
+STARTUP_GRACE_S = 10.0
+"""Seconds (scan stamps) after the first scan during which a missing transform is expected
+until one scan was mapped (the map frame appears once localisation starts): such dropped
+scans are logged at debug level, the others as warnings."""
 _REBUILD_REACH_M = 3.0  # a heading change counts by how far it moves a wall 3 m away
 
 
@@ -163,6 +167,7 @@ class MapperNode(Node):
         self.create_timer(interval, self.publish_map)
         self._pending: list[LaserScan] = []
         self.dropped = 0
+        self._first_scan_ns: int | None = None
 
     def _integrate(self, msg: LaserScan) -> bool:
         stamp = time_to_ns(msg.header.stamp)
@@ -221,10 +226,17 @@ class MapperNode(Node):
         self.dropped += 1
         frame = msg.header.frame_id
         text = f"dropped a scan: no transform from '{frame}' to '{self.map_frame}': {exc}"
+        first = self._first_scan_ns
+        early = first is not None and time_to_ns(msg.header.stamp) - first < STARTUP_GRACE_S * 1e9
+        if early and self.mapper.scans == 0:  # the map frame has never been there yet
+            self.get_logger().debug(f"{text} (expected while the stack starts)")
+            return True
         self.get_logger().warning(text, throttle_duration_sec=_DROP_LOG_PERIOD_S)
         return True
 
     def _on_scan(self, msg: LaserScan) -> None:
+        if self._first_scan_ns is None:
+            self._first_scan_ns = time_to_ns(msg.header.stamp)
         self._pending.append(msg)
         while self._pending and self._integrate(self._pending[0]):
             self._pending.pop(0)

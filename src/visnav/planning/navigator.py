@@ -61,6 +61,7 @@ from visnav.planning.recovery import (
 )
 
 __all__ = [
+    "STARTUP_GRACE_S",
     "GoalHandle",
     "GoalStatus",
     "NavError",
@@ -71,6 +72,10 @@ __all__ = [
 ]
 
 _NS = 1_000_000_000
+STARTUP_GRACE_S = 10.0
+"""Seconds after the first control cycle during which a costmap that has never been current
+(no map yet, sensors warming up) is expected: the stop is logged at debug level, and as a
+warning only if it lasts past the grace period. Later stops are warnings at once."""
 
 
 class GoalStatus(enum.IntEnum):
@@ -239,6 +244,9 @@ class Navigator:
         self.last_control: ControlResult | None = None
         self._reset_timers(0)
         self._stopped_text = ""
+        self._stop_warned = False
+        self._first_step_ns: int | None = None
+        self._was_current = False
 
     # ------------------------------------------------------------------ goals
     def _reset_timers(self, now_ns: int) -> None:
@@ -329,6 +337,8 @@ class Navigator:
         velocity: tuple[float, float],
     ) -> tuple[float, float]:
         """One control cycle; returns ``(v, w)`` (zero when idle, stopped or failing)."""
+        if self._first_step_ns is None:
+            self._first_step_ns = now_ns
         h = self.handle
         if h is None or h.done:
             return 0.0, 0.0
@@ -338,17 +348,25 @@ class Navigator:
         if stale:
             text = f"stopped: costmap data are not current ({stale[0].reason})"
             key = re.sub(r"[0-9.]+", "#", text)  # one log line per kind of stop, not per age
+            early = not self._was_current and now_ns - self._first_step_ns < STARTUP_GRACE_S * _NS
             if key != self._stopped_text:
-                self._log("warning", text)
+                self._log("debug" if early else "warning", text)
                 self._stopped_text = key
+                self._stop_warned = not early
+            elif not early and not self._stop_warned:  # a start-up stop that persists
+                self._log("warning", f"{text}, since start-up")
+                self._stop_warned = True
             h.text = text
             self._last_osc_reset = now_ns
             self._last_valid_control = now_ns
             self._last_valid_plan = now_ns
             return 0.0, 0.0
+        self._was_current = True
         if self._stopped_text:
-            self._log("info", "sensor data are current again; resuming")
+            level = "info" if self._stop_warned else "debug"
+            self._log(level, "sensor data are current again; resuming")
             self._stopped_text = ""
+            self._stop_warned = False
         if self.state is NavState.CONTROLLING and self.controller.is_goal_reached(
             pose_global, velocity
         ):

@@ -254,7 +254,8 @@ class NavigatorNode(Node):
     # ------------------------------------------------------------------ callbacks
     def _log(self, level: str, text: str) -> None:
         logger = self.get_logger()
-        {"info": logger.info, "warning": logger.warning}.get(level, logger.error)(text)
+        log = {"debug": logger.debug, "info": logger.info, "warning": logger.warning}
+        log.get(level, logger.error)(text)
 
     def _on_goal(self, msg: PoseStamped) -> None:
         self.go_to(msg)

@@ -27,9 +27,15 @@ observer writes its files there too (the car's ``map.yaml`` / ``map.pgm`` and SL
 
 Where visnav differs from recording everything with ``ros2 bag record -a``: raw camera
 images and point clouds are left out of the scenario bag by default (``record_all=True``
-/ ``--record-all`` keeps them): at 640x480 they are ~130 MB per simulated second.
-``record_images=True`` / ``--record-images`` keeps the camera images only, so that
-``visnav view BAG`` shows them beside the 3D view. What the bag leaves out the topic
+/ ``--record-all`` keeps them, as published): at 640x480 they are ~130 MB per simulated
+second. ``record_images=True`` / ``--record-images`` keeps the camera images only, so that
+``visnav view BAG`` shows them beside the 3D view, stored as image_transport's compressed
+transports publish them (``<image topic>/compressed`` JPEG, depth as
+``<image topic>/compressedDepth`` PNG; :mod:`visnav.bag.image_compression`): the car's bag
+is ~6x smaller (5.7 vs 34 MB per simulated second; ~9x with ideal sensors, whose depth has
+no noise to store); ``raw_images=True`` / ``--raw-images`` stores them raw instead.
+``summary.json`` gives the bag's size (``bag_bytes``, ``bag_mb_per_sim_s``) and how images
+were stored (``bag_images``: ``compressed``, ``raw`` or ``none``). What the bag leaves out the topic
 counter does not subscribe to either (its ``topics`` entry has count and rate None): a
 camera renders only while one of its topics has a subscriber, as gazebo_ros_camera does.
 """
@@ -37,10 +43,10 @@ camera renders only while one of its topics has a subscriber, as gazebo_ros_came
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
 import difflib
 import importlib.resources
 import json
+import logging
 import math
 import sys
 import time
@@ -48,6 +54,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TextIO
 
+from visnav.bag.image_compression import ImageCompression
 from visnav.bag.recorder import BagRecorder
 from visnav.graph.context import Context
 from visnav.graph.introspect import (
@@ -58,11 +65,19 @@ from visnav.graph.node import Node
 from visnav.launch.description import LaunchDescription
 from visnav.launch.loader import load_launch
 from visnav.launch.supervisor import Launcher
+from visnav.logsetup import add_log_file, kernel_compilation_notice, remove_log_file
 from visnav.msgs.serde import get_message_class
 from visnav.scenarios.errors import ScenarioError
+from visnav.scenarios.run_control import (
+    RunInterrupt,
+    default_output_dir,
+    remove_refused_output,
+)
+from visnav.scenarios.run_display import RunProgress, ViewFeed
 from visnav.sim.guards import SecondSimulationError, refuse_second_simulation
 
 __all__ = [
+    "LOG_NAME",
     "SCENARIOS",
     "ScenarioDef",
     "ScenarioError",
@@ -74,6 +89,9 @@ __all__ = [
 
 _BULKY_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/PointCloud2")
 _SLICE_S = 0.1  # sim seconds between progress updates, topic polls and child supervision
+_LOG = logging.getLogger("visnav.scenarios")
+LOG_NAME = "run.log"
+"""The run's log file in its output directory: every record, DEBUG included."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,6 +110,12 @@ SCENARIOS: dict[str, ScenarioDef] = {
     "car": ScenarioDef("car", "office", "car", 240.0, "car.launch.yaml"),
     "drone": ScenarioDef(
         "drone", "forest", "quadrotor", 60.0, "drone.launch.yaml", namespace="/drone"
+    ),
+    "tb3-nav": ScenarioDef(
+        "tb3-nav", "turtlebot3_world", "turtlebot3_burger", 400.0, "tb3-nav.launch.yaml"
+    ),
+    "tb3-slam": ScenarioDef(
+        "tb3-slam", "turtlebot3_world", "turtlebot3_burger", 300.0, "tb3-slam.launch.yaml"
     ),
 }
 
@@ -178,63 +202,8 @@ class TopicCounter:
         return out
 
 
-class _Progress:
-    """The run's progress bar (rich): sim seconds done, real-time factor, ETA.
-
-    On a terminal it is a live bar; otherwise (a log file, a pipe) one line per tenth.
-    """
-
-    def __init__(self, name: str, total_s: float, stream: TextIO) -> None:
-        from rich.console import Console  # noqa: PLC0415 - only with progress output
-        from rich.progress import (  # noqa: PLC0415
-            BarColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
-
-        self.name, self.total = name, total_s
-        self.console = Console(file=stream)
-        self._last_decile = -1
-        self._bar = Progress(
-            TextColumn("[{task.description}]", markup=False),
-            BarColumn(),
-            TextColumn("sim {task.completed:6.1f}/{task.total:g} s  RTF {task.fields[rtf]:4.2f}"),
-            TimeElapsedColumn(),
-            TextColumn("ETA"),
-            TimeRemainingColumn(),
-            console=self.console,
-            auto_refresh=self.console.is_terminal,
-        )
-        self._task = self._bar.add_task(name, total=total_s, rtf=0.0)
-        if self.console.is_terminal:
-            self._bar.start()
-
-    def update(self, sim_s: float, rtf: float, *, final: bool = False) -> None:
-        self._bar.update(self._task, completed=min(sim_s, self.total), rtf=rtf)
-        if self.console.is_terminal:
-            if final:
-                self._bar.refresh()
-                self.close()
-            return
-        frac = min(1.0, sim_s / self.total) if self.total > 0 else 1.0
-        decile = int(frac * 10)
-        if decile != self._last_decile or final:
-            self._last_decile = decile
-            text = f"[{self.name}] sim {sim_s:.1f}/{self.total:g} s  RTF {rtf:.2f}"
-            self.console.print(text, markup=False, highlight=False)
-
-    def close(self) -> None:
-        """Stop the live bar (idempotent)."""
-        self._bar.stop()
-
-
 def _out_dir(out: str | Path | None) -> Path:
-    if out is not None:
-        return Path(out)
-    stamp = _dt.datetime.now(tz=_dt.timezone.utc).strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / stamp
+    return Path(out) if out is not None else default_output_dir()
 
 
 def _bool(value: bool) -> str:
@@ -272,6 +241,7 @@ def run_scenario(
     out: str | Path | None = None,
     record_all: bool = False,
     record_images: bool = False,
+    raw_images: bool = False,
     realtime: bool = False,
     view: bool = False,
     slam: bool = True,
@@ -279,6 +249,8 @@ def run_scenario(
     launch_args: Mapping[str, str] | None = None,
     context: Context | None = None,
     progress: TextIO | None = sys.stderr,
+    interrupt: RunInterrupt | None = None,
+    log_file: bool = True,
 ) -> dict[str, Any]:
     """Launch a scenario and return its summary (also written to ``summary.json``).
 
@@ -290,7 +262,9 @@ def run_scenario(
         duration_s: simulated seconds (default: the scenario's, 240 s for the car).
         out: output directory (default ``runs/<UTC timestamp>``); must not hold a bag yet.
         record_all: also record raw images and point clouds.
-        record_images: also record the camera images (not the point clouds).
+        record_images: also record the camera images (not the point clouds), compressed
+            (``<topic>/compressed``, depth ``<topic>/compressedDepth``).
+        raw_images: with ``record_images``, store the images raw instead.
         realtime: pace the simulation to the wall clock.
         view: stream the run to the Rerun viewer (needs ``visnav[viz]``).
         slam: run the car's visual SLAM and score it (``slam`` summary key).
@@ -302,6 +276,13 @@ def run_scenario(
         context: the graph context of the shared nodes (default: a new one, with the
             Zenoh transport so other processes see the run).
         progress: where the progress bar goes (None: no progress output).
+        interrupt: the run's Ctrl-C handler (:class:`RunInterrupt`, installed by the
+            caller): once it is requested the run stops at the next step and returns its
+            summary with ``status`` ``interrupted``. Without one a KeyboardInterrupt
+            still writes that summary, then goes on.
+        log_file: write every log record of the run, DEBUG included, to ``run.log`` in
+            the output directory (False: the caller keeps its own log there, as a sweep
+            worker does).
 
     Returns:
         The summary dictionary.
@@ -337,31 +318,84 @@ def run_scenario(
         for key in ("slam", "ideal_sensors"):  # the drone has no SLAM and only ideal sensors
             args.pop(key, None)
     description = load_launch(path, {**args, **dict(launch_args or {})})
+    existed = out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
+    log_handler = add_log_file(out_dir / LOG_NAME) if log_file else None
     own_ctx = context is None
-    ctx = context if context is not None else Context()
+    state = _RunState(
+        label=sdef.name if sdef is not None else path.name,
+        seed=seed,
+        out_dir=out_dir,
+        launch_file=None if sdef is not None else str(path),
+        interrupt=interrupt,
+        raw_images=raw_images,
+    )
+    try:
+        with kernel_compilation_notice():
+            ctx = context if context is not None else Context()
+            try:
+                launcher = _start(description, ctx, state)
+                if launcher is None:  # refused: nothing ran
+                    if log_handler is not None:
+                        remove_log_file(log_handler)
+                    remove_refused_output(out_dir, existed=existed)
+                    assert state.refusal is not None  # _start sets it
+                    raise state.refusal
+                return _run(launcher, state, record_all, record_images, view, progress)
+            finally:
+                if own_ctx:
+                    ctx.shutdown()
+    finally:
+        if log_handler is not None:
+            remove_log_file(log_handler)
+
+
+@dataclasses.dataclass
+class _RunState:
+    """What a run knows about itself while it goes (for the summary, whatever happens)."""
+
+    label: str
+    seed: int
+    out_dir: Path
+    launch_file: str | None
+    interrupt: RunInterrupt | None
+    raw_images: bool = False
+    bag_images: str = "none"
+    status: str = "completed"
+    error: str = ""
+    sim_s: float = 0.0
+    wall0: float = dataclasses.field(default_factory=time.perf_counter)
+    topics: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    bag: Path | None = None
+    refusal: BaseException | None = None
+    late_failure: BaseException | None = None
+
+    @property
+    def interrupted(self) -> bool:
+        return self.interrupt is not None and self.interrupt.requested
+
+
+def _start(description: LaunchDescription, ctx: Context, state: _RunState) -> Launcher | None:
+    """Start the launch; None when it was refused (``state.refusal``) before anything ran.
+
+    A Ctrl-C during the start-up stops the start (the run then ends at once, interrupted).
+    """
+    launcher = Launcher(description, domain=ctx.domain, context=ctx)
+    if state.interrupt is not None:
+        state.interrupt.attach(launcher)
     try:
         _refuse_a_second_simulation(ctx)
-        launcher = Launcher(description, domain=ctx.domain, context=ctx)
-        try:
-            launcher.start()
-            label = sdef.name if sdef is not None else path.name
-            return _run(
-                launcher,
-                label,
-                seed,
-                out_dir,
-                record_all,
-                record_images,
-                view,
-                progress,
-                launch_file=None if sdef is not None else str(path),
-            )
-        finally:
-            launcher.shutdown()
-    finally:
-        if own_ctx:
-            ctx.shutdown()
+        launcher.start()
+        if not state.interrupted:
+            _driver(launcher, description)
+    except KeyboardInterrupt:  # a second Ctrl-C (or one without a handler) while starting
+        state.status = "interrupted"
+        launcher.request_stop()
+    except Exception as exc:  # noqa: BLE001 - a refusal: raised by the caller
+        launcher.shutdown()
+        state.refusal = exc
+        return None
+    return launcher
 
 
 def _refuse_a_second_simulation(ctx: Context) -> None:
@@ -392,80 +426,170 @@ def _driver(launcher: Launcher, description: LaunchDescription) -> Any:
 
 def _run(
     launcher: Launcher,
-    label: str,
-    seed: int,
-    out_dir: Path,
+    state: _RunState,
     record_all: bool,
     record_images: bool,
     view: bool,
     progress: TextIO | None,
-    *,
-    launch_file: str | None,
 ) -> dict[str, Any]:
-    driver = _driver(launcher, launcher.description)
+    """Run the started launch to its end, then write and return the summary.
+
+    Ctrl-C (``state.interrupt``, or a KeyboardInterrupt) ends it as ``interrupted``; an
+    error after the start as ``failed`` (the summary is written, then the error raised).
+    """
+    failure: BaseException | None = None
+    try:
+        if state.status != "interrupted" and not state.interrupted:
+            _loop(launcher, state, record_all, record_images, view, progress)
+    except KeyboardInterrupt:
+        state.status = "interrupted"
+    except Exception as exc:  # noqa: BLE001 - written into the summary, then raised
+        state.status, state.error, failure = "failed", f"{type(exc).__name__}: {exc}", exc
+    if state.interrupted:
+        state.status = "interrupted"
+    if state.status == "interrupted":
+        _LOG.info(
+            "interrupted (Ctrl-C): stopping the nodes and writing the summary "
+            "(Ctrl-C again to stop at once)"
+        )
+    try:
+        launcher.shutdown()  # the observer writes summary.json when it ends (if not yet)
+    except KeyboardInterrupt:
+        state.status = "interrupted"
+    except Exception as exc:  # noqa: BLE001 - the summary is written first
+        if failure is None:
+            state.status, state.error, failure = "failed", f"{type(exc).__name__}: {exc}", exc
+    if state.status == "completed" and launcher.exit_code != 0:
+        state.status = "failed"
+        state.error = (
+            f"the launch ended with exit code {launcher.exit_code} (a required node exited)"
+        )
+    summary = _write_summary(launcher.description, state)
+    failure = failure or state.late_failure
+    if failure is not None:
+        raise failure
+    if state.status == "interrupted" and state.interrupt is None:
+        raise KeyboardInterrupt  # a library caller without a handler: the interrupt goes on
+    return summary
+
+
+def _loop(
+    launcher: Launcher,
+    state: _RunState,
+    record_all: bool,
+    record_images: bool,
+    view: bool,
+    progress: TextIO | None,
+) -> None:
+    driver = launcher.lockstep_driver()
     sim = driver.sim
     ctx = launcher.context
-    bag_path = out_dir / "bag"
+    bag_path = state.out_dir / "bag"
     record = "all" if record_all else "images" if record_images else ""
     left_out = () if record == "all" else _left_out_types(keep_images=record == "images")
     counter = TopicCounter(ctx, lambda: sim.now_ns, skip_types=left_out)
     exclude = None if record == "all" else _bulky_exclusion(ctx, keep_images=record == "images")
+    compressed = record == "images" and not state.raw_images
+    state.bag_images = "compressed" if compressed else "raw" if record else "none"
     recorder = BagRecorder(
-        ctx, None, bag_path, compression="zstd", exclude=exclude, use_sim_time=True
+        ctx,
+        None,
+        bag_path,
+        compression="zstd",
+        exclude=exclude,
+        use_sim_time=True,
+        topic_log_level=logging.DEBUG,
+        image_transport=ImageCompression() if compressed else None,
     )
     recorder.start()
-    feed = _ViewFeed(ctx, out_dir, progress or sys.stderr) if view else None
+    state.bag = bag_path
+    feed = ViewFeed(ctx, state.out_dir, progress or sys.stderr) if view else None
     duration = float(driver.duration_s)
-    bar = _Progress(label, duration, progress) if progress is not None else None
+    bar = RunProgress(state.label, duration, progress) if progress is not None else None
     start_sim = sim.sim_time_s
-    wall0 = time.perf_counter()
+    state.wall0 = time.perf_counter()
+    stop: Callable[[], bool] = state.interrupt if state.interrupt is not None else _never
     try:
-        while ctx.ok and not launcher.stopping:
+        while ctx.ok and not launcher.stopping and not stop():
             counter.poll()
             if feed is not None:
                 feed.poll()
             try:
-                more = driver.run_lockstep(_SLICE_S)
+                more = driver.run_lockstep(_SLICE_S, until=stop)
             except SystemExit:  # the observer: the task is done
                 more = False
             launcher.poll()
+            state.sim_s = sim.sim_time_s - start_sim
             if bar is not None:
-                wall = time.perf_counter() - wall0
-                done_s = sim.sim_time_s - start_sim
-                bar.update(done_s, done_s / max(wall, 1e-9))
+                wall = time.perf_counter() - state.wall0
+                bar.update(state.sim_s, state.sim_s / max(wall, 1e-9))
             if not more:
                 break
-    except BaseException:
-        if bar is not None:
-            bar.close()
-        raise
     finally:
+        state.sim_s = sim.sim_time_s - start_sim
+        if bar is not None:
+            if stop():
+                bar.close()
+            else:
+                wall = time.perf_counter() - state.wall0
+                bar.update(state.sim_s, state.sim_s / max(wall, 1e-9), final=True)
+                bar.close()
+        state.topics = counter.summary()
         recorder.stop()
         if feed is not None:
             feed.close()
-    wall = time.perf_counter() - wall0
-    sim_s = sim.sim_time_s - start_sim
-    if bar is not None:
-        bar.update(sim_s, sim_s / max(wall, 1e-9), final=True)
-    topics = counter.summary()
-    launcher.shutdown()  # the observer writes summary.json when it ends (if not yet)
-    task = _observer_summary(out_dir, launcher.description)
+
+
+def _never() -> bool:
+    return False
+
+
+def _write_summary(description: LaunchDescription, state: _RunState) -> dict[str, Any]:
+    """Merge the run's figures and the observer's, write ``summary.json``, return them."""
+    wall = time.perf_counter() - state.wall0
+    sim_s = state.sim_s
+    try:
+        task = _observer_summary(state.out_dir, description)
+    except ScenarioError as exc:
+        _LOG.debug("no task summary: %s", exc)
+        task = {}
+        if state.status == "completed":  # the run went well but its observer did not
+            state.status, state.error, state.late_failure = "failed", str(exc), exc
     summary: dict[str, Any] = {
-        "scenario": task.pop("scenario", label) if launch_file else label,
-        "seed": seed,
+        "scenario": task.pop("scenario", state.label) if state.launch_file else state.label,
+        "seed": state.seed,
+        "status": state.status,
         "sim_duration_s": round(sim_s, 6),
         "wall_duration_s": round(wall, 3),
         "real_time_factor": round(sim_s / wall, 4) if wall > 0 else None,
-        "bag": str(bag_path),
-        "topics": topics,
+        "bag": str(state.bag) if state.bag is not None else None,
+        **_bag_size(state.bag, sim_s, state.bag_images),
+        "topics": state.topics,
     }
-    if launch_file is not None:
-        summary["launch_file"] = launch_file
-    for key in ("scenario", "seed", "sim_duration_s"):
+    if state.error:
+        summary["error"] = state.error
+    if state.launch_file is not None:
+        summary["launch_file"] = state.launch_file
+    for key in ("scenario", "seed", "sim_duration_s", "status"):
         task.pop(key, None)
     summary.update(task)
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    tmp = state.out_dir / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=2) + "\n")
+    tmp.replace(state.out_dir / "summary.json")
+    from visnav.scenarios.trajectory_plot import write_trajectory_png  # noqa: PLC0415 - cycle
+
+    write_trajectory_png(state.out_dir, description, summary)  # logs a failure, never raises
     return summary
+
+
+def _bag_size(path: Path | None, sim_s: float, images: str) -> dict[str, Any]:
+    """``bag_bytes``, ``bag_mb_per_sim_s`` (MB = 1e6 bytes) and ``bag_images`` of a run."""
+    if path is None or not path.exists():
+        return {"bag_bytes": None, "bag_mb_per_sim_s": None, "bag_images": images}
+    files = [path] if path.is_file() else [f for f in path.rglob("*") if f.is_file()]
+    size = sum(f.stat().st_size for f in files)
+    per_s = round(size / 1e6 / sim_s, 3) if sim_s > 0 else None
+    return {"bag_bytes": size, "bag_mb_per_sim_s": per_s, "bag_images": images}
 
 
 def _observer_summary(out_dir: Path, description: LaunchDescription) -> dict[str, Any]:
@@ -501,24 +625,14 @@ def _bulky_exclusion(ctx: Context, *, keep_images: bool = False) -> str | None:
     return "^(" + "|".join(t.replace(".", r"\.") for t in bulky) + ")$"
 
 
-class _ViewFeed:
-    """``--view``: stream the run to Rerun's web viewer (127.0.0.1) and save ``run.rrd``."""
-
-    def __init__(self, ctx: Context, out_dir: Path, stream: TextIO) -> None:
-        from visnav.viz import LiveFeed, RerunSink, open_viewer  # noqa: PLC0415 - optional extra
-
-        self._viewer = open_viewer(web=True, save=out_dir / "run.rrd")
-        self._feed = LiveFeed(RerunSink(self._viewer.recording), ctx)
-        stream.write(f"viewer: {self._viewer.url}\n")
-        stream.flush()
-
-    def poll(self) -> None:
-        self._feed.scan()
-        self._feed.sink.poll()
-
-    def close(self) -> None:
-        self._feed.close()
-        self._viewer.close()
+def _bag_line(summary: dict[str, Any]) -> str:
+    if summary.get("bag_bytes") is None:
+        return ""
+    text = f"  ({summary['bag_bytes'] / 1e6:.1f} MB"
+    if summary.get("bag_mb_per_sim_s") is not None:
+        text += f", {summary['bag_mb_per_sim_s']:.2f} MB per simulated second"
+    images = summary.get("bag_images")
+    return text + (f", images {images})" if images and images != "none" else ")")
 
 
 def format_summary(summary: dict[str, Any]) -> str:
@@ -527,8 +641,14 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"scenario {summary['scenario']}  seed {summary['seed']}",
         f"sim {summary['sim_duration_s']:.1f} s in {summary['wall_duration_s']:.1f} s wall "
         f"(real-time factor {summary['real_time_factor']})",
-        f"bag {summary['bag']}",
+        f"bag {summary['bag']}" + _bag_line(summary),
     ]
+    if summary.get("status", "completed") != "completed":  # interrupted, failed: say so
+        lines.insert(
+            1,
+            f"status {summary['status']}"
+            + (f": {summary['error']}" if summary.get("error") else ""),
+        )
     for key in (
         "goals_total",
         "goals_reached",

@@ -157,7 +157,12 @@ def main(argv: list[str]) -> int:
     try:
         with Context(spec.domain, transport="local") as ctx:
             summary = run_scenario(
-                spec.scenario, out=run_dir, context=ctx, progress=None, **spec.run_kwargs()
+                spec.scenario,
+                out=run_dir,
+                context=ctx,
+                progress=None,
+                log_file=False,  # this process's output is the run's run.log already
+                **spec.run_kwargs(),
             )
     except VisnavError as exc:
         _say(f"error: {exc}")
