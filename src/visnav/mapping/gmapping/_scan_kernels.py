@@ -27,8 +27,11 @@ __all__ = ["likelihood_and_score", "optimize", "scan_match_all", "score"]
 
 F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
+I16 = NDArray[np.int16]
 _NULL_LIKELIHOOD = -0.5
 _WIN_MARGIN = 10  # cells the hill climbing may move before lookups leave the window
+_WIN_HALF_MAX = 90  # (2 * 90 + 1)**2 cells < 2**15: the window's codes are int16
+_SEEN = 256  # poses the hill climbing remembers (it scores about 100)
 
 
 @njit(cache=True)
@@ -44,20 +47,22 @@ def _window(
     delta: float,
     cx0: int,
     cy0: int,
-) -> tuple[I32, F64, NDArray[np.uint32], int, int]:  # pragma: no cover - compiled
+) -> tuple[I16, F64, NDArray[np.uint32], int, int]:  # pragma: no cover - compiled
     """A dense index of a particle's full cells around a laser origin, for fast lookups.
 
     Returns ``(code, means, masks, wx0, wy0)``: ``code[wy, wx]`` is -1 for a cell below
     gmapping's fullness threshold (or unknown), -2 exactly at it, else an index into
-    ``means`` (K, 2) (the cell's mean hit point) and ``masks`` (K,): bit
+    ``means`` (K, 4) (the cell's mean hit point x, y, then its mask as a float) and
+    ``masks`` (K,): bit
     ``(ox + 2) * 5 + (oy + 2)`` is set when the cell at offset ``(ox, oy)`` (each in -2..2)
     is below the threshold (free or unknown). The window's cell (0, 0) is table cell ``(wx0, wy0)``.
     """
-    half = math.ceil(reach / delta) + _WIN_MARGIN
+    # capped so that every code fits an int16 (lookups beyond the window use the patches)
+    half = min(math.ceil(reach / delta) + _WIN_MARGIN, _WIN_HALF_MAX)
     wx0 = math.floor(lx / delta) - cx0 - half
     wy0 = math.floor(ly / delta) - cy0 - half
     n = 2 * half + 1
-    code = np.full((n, n), -1, np.int32)
+    code = np.full((n, n), -1, np.int16)
     cap = 256
     means = np.empty((cap, 2))
     where = np.empty((cap, 2), np.int64)
@@ -100,7 +105,7 @@ def _window(
                         means[count, 1] = accy[pid, kk] / h
                         where[count, 0] = wx
                         where[count, 1] = wy
-                        code[wy, wx] = count
+                        code[wy, wx] = np.int16(count)
                         count += 1
     masks = np.zeros(count, np.uint32)
     for c in range(count):
@@ -118,7 +123,14 @@ def _window(
                 if below:
                     m |= np.uint32(1) << np.uint32((ox + 2) * 5 + (oy + 2))
         masks[c] = m
-    return code, means[:count], masks, wx0, wy0
+    # the fast path reads a full cell's mean and mask from one 32-byte record
+    rec = np.zeros((count + 1, 4))  # row ``count``: no cell (mask 0)
+    for c in range(count):
+        rec[c, 0] = means[c, 0]
+        rec[c, 1] = means[c, 1]
+        rec[c, 2] = masks[c]
+        rec[c, 3] = 0.0
+    return code, rec, masks, wx0, wy0
 
 
 @njit(cache=True)
@@ -135,8 +147,25 @@ def _outside(
 
 
 @njit(cache=True)
+def _used_beams(ranges: F64, usable: float, lskip: int) -> NDArray[np.int64]:  # pragma: no cover
+    """Indexes of the beams gmapping's score loop uses: every ``lskip + 1``-th, range <= usable."""
+    out = np.empty(ranges.shape[0], np.int64)
+    n = 0
+    skip = 0
+    for i in range(ranges.shape[0]):
+        skip += 1
+        if skip > lskip:
+            skip = 0
+        if skip != 0 or not ranges[i] <= usable:  # also NaN
+            continue
+        out[n] = i
+        n += 1
+    return out[:n]
+
+
+@njit(cache=True)
 def _match(
-    code: I32,
+    code: I16,
     means: F64,
     masks: NDArray[np.uint32],
     wx0: int,
@@ -150,23 +179,23 @@ def _match(
     y: float,
     th: float,
     ranges: F64,
+    beams: NDArray[np.int64],
     bc: F64,
     bs: F64,
     laser: F64,
-    usable: float,
     sigma: float,
     lsigma: float,
     delta: float,
     cx0: int,
     cy0: int,
     kernel: int,
-    lskip: int,
     with_likelihood: bool,
 ) -> tuple[float, float, int]:  # pragma: no cover - compiled
     """gmapping's score (and likelihoodAndScore): returns (score, log likelihood, matched).
 
-    ``bc``, ``bs``: cos and sin of the beam angles (computed once per scan); the window
-    (:func:`_window`) answers the lookups it covers, the patches the others.
+    ``beams``: the used beams (:func:`_used_beams`); ``bc``, ``bs``: cos and sin of the beam
+    angles (computed once per scan); the window (:func:`_window`) answers the lookups it
+    covers (branch-free when the whole kernel window is inside it), the patches the others.
     """
     c = math.cos(th)
     s = math.sin(th)
@@ -179,19 +208,13 @@ def _match(
     inv_delta = 1.0 / delta
     no_hit = _NULL_LIKELIHOOD / lsigma
     wh, ww = code.shape
+    none = means.shape[0] - 1
     total = 0.0
     like = 0.0
     matched = 0
-    skip = 0
-    for i in range(ranges.shape[0]):
-        skip += 1
-        if skip > lskip:
-            skip = 0
+    for j in range(beams.shape[0]):
+        i = beams[j]
         r = ranges[i]
-        if not r <= usable:  # also NaN
-            continue
-        if skip != 0:
-            continue
         if r == 0.0 and not with_likelihood:
             continue
         ca = cl * bc[i] - sl * bs[i]
@@ -205,31 +228,51 @@ def _match(
         found = False
         bx = 0.0
         by = 0.0
-        for xx in range(-kernel, kernel + 1):
-            for yy in range(-kernel, kernel + 1):
-                prx = ihx + xx
-                pry = ihy + yy
-                wx = prx - wx0
-                wy = pry - wy0
-                if 0 <= wx < ww and 0 <= wy < wh:
-                    c = code[wy, wx]
-                    if c < 0 or (masks[c] >> ((ifx + 2) * 5 + (ify + 2))) & 1 == 0:
-                        continue
-                    mx = means[c, 0]
-                    my = means[c, 1]
-                else:
-                    c1, mx, my = _outside(table, accx, accy, hits, visits, prx, pry)
-                    if c1 != 1:
-                        continue
-                    c2 = _outside(table, accx, accy, hits, visits, prx + ifx, pry + ify)[0]
-                    if c2 != 0:
-                        continue
-                mux = hx - mx
-                muy = hy - my
-                if not found or mux * mux + muy * muy < bx * bx + by * by:
-                    bx = mux
-                    by = muy
-                    found = True
+        wcx = ihx - wx0
+        wcy = ihy - wy0
+        if kernel <= wcx < ww - kernel and kernel <= wcy < wh - kernel:
+            # branch-free over the kernel window: a cell that is not full reads record
+            # ``none`` (mask 0); the first strictly nearest valid mean wins, as in the loops
+            free_bit = (ifx + 2) * 5 + (ify + 2)
+            best_d = math.inf
+            for xx in range(-kernel, kernel + 1):
+                for yy in range(-kernel, kernel + 1):
+                    q = code[wcy + yy, wcx + xx]
+                    q = q if q >= 0 else none
+                    mux = hx - means[q, 0]
+                    muy = hy - means[q, 1]
+                    d = mux * mux + muy * muy
+                    take = ((np.int64(means[q, 2]) >> free_bit) & 1 != 0) & (d < best_d)
+                    best_d = d if take else best_d
+                    bx = mux if take else bx
+                    by = muy if take else by
+            found = best_d < math.inf
+        else:
+            for xx in range(-kernel, kernel + 1):
+                for yy in range(-kernel, kernel + 1):
+                    prx = ihx + xx
+                    pry = ihy + yy
+                    wx = prx - wx0
+                    wy = pry - wy0
+                    if 0 <= wx < ww and 0 <= wy < wh:
+                        q = code[wy, wx]
+                        if q < 0 or (masks[q] >> ((ifx + 2) * 5 + (ify + 2))) & 1 == 0:
+                            continue
+                        mx = means[q, 0]
+                        my = means[q, 1]
+                    else:
+                        c1, mx, my = _outside(table, accx, accy, hits, visits, prx, pry)
+                        if c1 != 1:
+                            continue
+                        c2 = _outside(table, accx, accy, hits, visits, prx + ifx, pry + ify)[0]
+                        if c2 != 0:
+                            continue
+                    mux = hx - mx
+                    muy = hy - my
+                    if not found or mux * mux + muy * muy < bx * bx + by * by:
+                        bx = mux
+                        by = muy
+                        found = True
         d2 = bx * bx + by * by
         if found:
             total += math.exp(-d2 / sigma)
@@ -291,15 +334,15 @@ def likelihood_and_score(
         table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0
     )
     return _match(
-        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, pose[0], pose[1], pose[2],
-        ranges, np.cos(angles), np.sin(angles), laser, usable, sigma, lsigma, delta, cx0, cy0,
-        kernel, lskip, True,
+        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, pose[0], pose[1],
+        pose[2], ranges, _used_beams(ranges, usable, lskip), np.cos(angles), np.sin(angles),
+        laser, sigma, lsigma, delta, cx0, cy0, kernel, True,
     )  # fmt: skip
 
 
 @njit(cache=True)
 def _optimize(
-    code: I32,
+    code: I16,
     means: F64,
     masks: NDArray[np.uint32],
     wx0: int,
@@ -311,25 +354,29 @@ def _optimize(
     visits: I32,
     init: F64,
     ranges: F64,
+    beams: NDArray[np.int64],
     bc: F64,
     bs: F64,
     laser: F64,
-    usable: float,
     sigma: float,
     delta: float,
     cx0: int,
     cy0: int,
     kernel: int,
-    lskip: int,
     lstep: float,
     astep: float,
     iterations: int,
 ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
     cx, cy, ct = init[0], init[1], init[2]
     current = _match(
-        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, cx, cy, ct, ranges, bc, bs,
-        laser, usable, sigma, 1.0, delta, cx0, cy0, kernel, lskip, False,
+        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, cx, cy, ct, ranges,
+        beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False,
     )[0]  # fmt: skip
+    # poses scored so far: a move back onto one of them (bit for bit, as x + d - d often is)
+    # reuses its score, which the same arithmetic would reproduce exactly
+    seen = np.empty((_SEEN, 4))
+    seen[0, 0], seen[0, 1], seen[0, 2], seen[0, 3] = cx, cy, ct, current
+    n_seen = 1
     best = -1.0
     ld = lstep
     ad = astep
@@ -355,10 +402,20 @@ def _optimize(
                 t += ad
             else:
                 t -= ad
-            sc = _match(
-                code, means, masks, wx0, wy0, table, accx, accy, hits, visits, x, y, t, ranges,
-                bc, bs, laser, usable, sigma, 1.0, delta, cx0, cy0, kernel, lskip, False,
-            )[0]  # fmt: skip
+            k = 0
+            while k < n_seen and not (seen[k, 0] == x and seen[k, 1] == y and seen[k, 2] == t):
+                k += 1
+            if k < n_seen:
+                sc = seen[k, 3]
+            else:
+                sc = _match(
+                    code, means, masks, wx0, wy0, table, accx, accy, hits, visits, x, y, t,
+                    ranges, beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False,
+                )[0]  # fmt: skip
+                if n_seen < _SEEN:
+                    seen[n_seen, 0], seen[n_seen, 1], seen[n_seen, 2] = x, y, t
+                    seen[n_seen, 3] = sc
+                    n_seen += 1
             if sc > current:
                 current = sc
                 bx, by, bt = x, y, t
@@ -402,8 +459,8 @@ def optimize(
     )
     return _optimize(
         code, means, masks, wx0, wy0, table, accx, accy, hits, visits, init, ranges,
-        np.cos(angles), np.sin(angles), laser, usable, sigma, delta, cx0, cy0, kernel, lskip,
-        lstep, astep, iterations,
+        _used_beams(ranges, usable, lskip), np.cos(angles), np.sin(angles), laser, sigma, delta,
+        cx0, cy0, kernel, lstep, astep, iterations,
     )  # fmt: skip
 
 
@@ -444,6 +501,7 @@ def scan_match_all(
     """
     bc = np.cos(angles)
     bs = np.sin(angles)
+    beams = _used_beams(ranges, usable, lskip)
     for p in prange(poses.shape[0]):  # particles are independent: deterministic
         table = tables[p]
         lx, ly, _ = laser_origin(poses[p], laser)
@@ -451,8 +509,9 @@ def scan_match_all(
             table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0
         )
         x, y, t, best = _optimize(
-            code, means, masks, wx0, wy0, table, accx, accy, hits, visits, poses[p], ranges, bc, bs,
-            laser, usable, sigma, delta, cx0, cy0, kernel, lskip, lstep, astep, iterations,
+            code, means, masks, wx0, wy0, table, accx, accy, hits, visits, poses[p],
+            ranges, beams, bc, bs, laser, sigma, delta, cx0, cy0, kernel, lstep, astep,
+            iterations,
         )  # fmt: skip
         if best > minimum_score:
             out_poses[p, 0] = x
@@ -465,7 +524,7 @@ def scan_match_all(
         out_scores[p] = best
         _, like, _ = _match(
             code, means, masks, wx0, wy0, table, accx, accy, hits, visits,
-            out_poses[p, 0], out_poses[p, 1], out_poses[p, 2], ranges, bc, bs, laser,
-            usable, sigma, lsigma, delta, cx0, cy0, kernel, lskip, True,
+            out_poses[p, 0], out_poses[p, 1], out_poses[p, 2], ranges, beams, bc, bs, laser,
+            sigma, lsigma, delta, cx0, cy0, kernel, True,
         )  # fmt: skip
         out_like[p] = like
