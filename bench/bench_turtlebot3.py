@@ -67,7 +67,9 @@ def run(model: str, topics: dict[str, type[Any]], seconds: float) -> tuple[float
         return stats.real_time_factor, counts
 
 
-def bench(model: str, configs: dict[str, dict[str, type[Any]]], seconds: float, repeat: int) -> None:
+def bench(
+    model: str, configs: dict[str, dict[str, type[Any]]], seconds: float, repeat: int
+) -> None:
     rtfs: dict[str, list[float]] = {name: [] for name in configs}
     counts: dict[str, dict[str, int]] = {}
     for _ in range(repeat):

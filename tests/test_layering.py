@@ -1,4 +1,4 @@
-"""The import layers of shared/design.md, checked over src/ with the ast module.
+"""The import layers of docs/architecture.md, checked over src/ with the ast module.
 
 A package may import only from its own layer or below. Every import counts: module
 level, inside functions (lazy) and under ``TYPE_CHECKING``. The root utility modules
@@ -21,16 +21,16 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("description",),
     ("graph",),
     ("tf", "message_filters"),
-    ("perception", "bag"),
+    ("perception", "bag", "teleop"),
     ("sim", "mapping", "slam", "viz"),
     ("planning", "doctor", "launch", "bridge"),
     ("scenarios",),
     ("cli",),
 )
-"""Bottom to top, as in shared/design.md."""
+"""Bottom to top, as in docs/architecture.md."""
 
 ROOT_UTILITIES = frozenset(
-    {"errors", "node_registry", "textfile", "safe_yaml", "outpaths", "plugin_registry"}
+    {"errors", "node_registry", "textfile", "safe_yaml", "outpaths", "plugin_registry", "logsetup"}
 )
 """Root modules (``src/visnav/<name>.py``) every layer may import."""
 

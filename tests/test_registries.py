@@ -95,7 +95,7 @@ ADDED = {
     },
     # issue 27.5 (session 11): ROS 1's throttle of /tf (roslaunch files set it)
     "robot_state_publisher": {"publish_frequency"},
-    "viz": {"packages"},  # issue 27.5: the robot model's package:// meshes
+    "viz": {"packages", "port", "grpc_port", "memory_limit"},  # + fixed ports, server memory
     # issue 14 item 4 (session 8): gmapping's maxUrange / linearUpdate / angularUpdate, and the
     # grid rebuilt on SLAM's corrected trajectory
     "mapper": {
@@ -188,10 +188,20 @@ def test_every_builtin_node_is_covered() -> None:
     # the scenario nodes (issue 17 item 3) are new: nothing to keep unchanged yet
     # amcl (issue 14 item 4) is new too; tests/mapping/test_amcl_node.py covers its parameters
     scenario_nodes = {"scenario_observer", "car_goals", "drone_mission", "amcl"}
+    scenario_nodes |= {"tb3_goals"}  # tests/scenarios/test_tb3_nav.py
     # joint_state_publisher (issue 27.5) is new: tests/launch/test_joint_state_publisher.py
     scenario_nodes |= {"joint_state_publisher", "joint_state_publisher_gui"}
     # usb_cam / cv_camera open their device when built: tests/perception/test_camera_driver.py
     drivers = {"usb_cam", "cv_camera"}
+    # foxglove_bridge binds port 8765 when built: tests/bridge/foxglove/test_node.py
+    drivers |= {"foxglove_bridge"}
+    # explore_lite is new: tests/planning/explore/test_explore_node.py covers its parameters
+    scenario_nodes |= {"explore_lite"}
+    # slam_gmapping is new: tests/mapping/gmapping/test_node.py covers its parameters
+    scenario_nodes |= {"slam_gmapping"}
+    # the teleop nodes open the terminal when built: tests/teleop/test_nodes.py; map_saver
+    # (new) waits for a map: tests/mapping/test_map_saver.py
+    drivers |= {"teleop_twist_keyboard", "turtlebot3_teleop_key", "map_saver"}
     assert set(BUILTIN_NODES) - covered - scenario_nodes - drivers == {"map_server", "ros1_bridge"}
 
 

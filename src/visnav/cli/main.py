@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import logging
 import sys
 import traceback
 from collections.abc import Sequence
+
+from visnav.logsetup import configure_logging
 
 __all__ = ["build_parser", "main"]
 
@@ -33,13 +34,24 @@ VERBS: dict[str, tuple[str, str]] = {
     "slam": ("visnav.cli.slam", "offline RGB-D SLAM on a TUM folder or a bag -> TUM trajectory"),
     "eval": ("visnav.cli.eval", "trajectory errors ATE / RPE of TUM files (evo's numbers)"),
     "view": ("visnav.cli.view", "show live topics or a bag in Rerun (RViz); web viewer option"),
+    "plot": ("visnav.cli.plot", "plot message fields live: /odom/twist/twist/linear/x (rqt_plot)"),
     "image": ("visnav.cli.image", "show one image topic; --snapshot writes a PNG (rqt_image_view)"),
     "launch": ("visnav.cli.launch", "start a launch file: YAML or roslaunch XML (ros2 launch)"),
     "bag": ("visnav.cli.bag", "record, inspect, play and convert bags (ros2 bag)"),
     "map": ("visnav.cli.map", "save a live /map as map.yaml + map.pgm, describe a saved map"),
+    "teleop": ("visnav.cli.teleop", "drive cmd_vel from the keyboard (teleop_twist_keyboard)"),
+    "goal": ("visnav.cli.goal", "send a navigation goal X Y [YAW] (RViz's 2D Nav Goal)"),
+    "initialpose": (
+        "visnav.cli.initialpose",
+        "set the localisation's pose X Y [YAW] (RViz's 2D Pose Estimate)",
+    ),
     "sim": ("visnav.cli.sim", "simulate a world and a robot (MuJoCo), sensors on the graph"),
     "doctor": ("visnav.cli.doctor", "find data-chain faults in a live graph or a bag, with fixes"),
     "bridge": ("visnav.cli.bridge", "join a ROS 1 graph: master XML-RPC + TCPROS (ros1_bridge)"),
+    "foxglove": (
+        "visnav.cli.foxglove",
+        "serve the graph to Foxglove / Lichtblick: WebSocket on 8765 (foxglove_bridge)",
+    ),
 }
 
 
@@ -78,17 +90,19 @@ def _verb_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``visnav`` command; return the exit code."""
+    """Run the ``visnav`` command; return the exit code (130 after Ctrl-C, no traceback)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # e.g. while the verb's modules load
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = _verb_parser(args_list)
     args = parser.parse_args(args_list)
-    logging.basicConfig(
-        level=logging.DEBUG if args.debug else logging.INFO,
-        format="[%(levelname)s] %(message)s",
-        stream=sys.stderr,
-    )
-    # PyOpenGL logs "No OpenGL_accelerate module loaded" at INFO on import (every sim start).
-    logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
+    # [LEVEL] message on stderr; other libraries' INFO lines and Python warnings at debug
+    configure_logging(debug=args.debug, stream=sys.stderr)
     from visnav.cli._errors import describe_error
 
     try:

@@ -99,7 +99,7 @@ class RosNodeNames:
 def default_principal_point(width: int, height: int) -> tuple[float, float]:
     """visnav's default principal point, ``(width / 2, height / 2)``.
 
-    The simulator issue specifies cx = width / 2, cy = height / 2, and visnav renders
+    visnav's cameras put the principal point at cx = width / 2, cy = height / 2 and render
     exactly that K. Where this differs from Gazebo: gazebo_ros_camera (ROS 2) and
     gazebo_ros_camera_utils (ROS 1) publish ``(width + 1) / 2`` while Gazebo renders
     the optical axis at ``(width - 1) / 2``, so Gazebo's camera_info is one pixel off

@@ -1,7 +1,7 @@
 """The fault catalogue: every check doctor runs, by id.
 
-Each finding names one of these ids. Ids are ``<category>.<name>``; categories follow
-the issue's list (topics, description, rates, images, camera_info, tf, time, frames, planner).
+Each finding names one of these ids. Ids are ``<category>.<name>``; the categories are
+topics, description, rates, images, camera_info, tf, time, frames and planner.
 ``needs_graph`` checks look at publishers and subscriptions, which a bag does not
 record: they are skipped on bags (QoS of a bag's publishers is still read).
 """

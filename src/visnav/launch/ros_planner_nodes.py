@@ -64,7 +64,7 @@ _SERVER_TOPICS: Mapping[str, tuple[str, str]] = {
     "odom_world": ("odometry_topic", "/odom_world"),
 }
 _NOT_READ = ("bspline.",)
-# read by ego-planner but never used there, so not parameters of visnav's planner (issue 17)
+# read by ego-planner but never used there, so not parameters of visnav's planner
 _READ_UNUSED = ("fsm.planning_horizen_time", "manager.max_jerk", "grid_map.depth_filter_tolerance")
 _WAYPOINT = re.compile(r"^fsm\.waypoint(\d+)_([xyz])$")
 _GOAL_PARAM = "_folded_goal_topic"

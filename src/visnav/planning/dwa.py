@@ -45,7 +45,7 @@ are not parameters here: no ``vy`` is sampled); a circular robot is checked as a
 circle instead of a 16-gon's outline: a point collides in a lethal cell, and in an
 inscribed cell when it lies within the inscribed radius of a lethal cell's centre (ROS's
 outline check lets the centre into the inscribed band; checking only the cost of the
-point's cell, as visnav did before session 6, quantises the radius by up to a cell
+point's cell (what this planner did at first) quantises the radius by up to a cell
 diagonal both ways, and a car stopped 0.36-0.37 m from a corner, at the edge of the band
 where DWA's rollouts at rest leave it, found every rollout "colliding" and waited 17 s
 for the recovery behaviours: seed 5 with the map in the local costmap); the stop and rotate

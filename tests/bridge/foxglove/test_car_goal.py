@@ -28,7 +28,6 @@ SUCCEEDED = 3
 
 
 @pytest.mark.slow
-@pytest.mark.ci
 @pytest.mark.timeout(600)
 def test_foxglove_goal_drives_the_launched_car_to_succeeded(
     js_client: Path, domain: int, tmp_path: Path
