@@ -13,17 +13,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from visnav.cli.goal import (
-    INITIALPOSE_COVARIANCE,
-    GoalArgumentError,
-    _finite,
-    goal_message,
-    initialpose_message,
-)
+from visnav.cli.goal import GoalArgumentError, _finite
 from visnav.graph import Context, Node
 from visnav.graph.action_server import ActionServer
 from visnav.msgs import PoseStamped, PoseWithCovarianceStamped
 from visnav.msgs.action import get_action_type
+from visnav.msgs.rviz_tools import INITIALPOSE_COVARIANCE, nav_goal, pose_estimate
 from visnav.msgs.time import time_to_ns
 
 
@@ -48,11 +43,11 @@ def _yaw(q: Any) -> float:
     st.floats(-math.pi + 1e-6, math.pi - 1e-6),
 )
 def test_messages_carry_the_pose(x: float, y: float, yaw: float) -> None:
-    goal = goal_message(x, y, yaw, frame="map", stamp_ns=5_000_000_001)
+    goal = nav_goal(x, y, yaw, frame_id="map", stamp_ns=5_000_000_001)
     assert (goal.pose.position.x, goal.pose.position.y, goal.pose.position.z) == (x, y, 0.0)
     assert _yaw(goal.pose.orientation) == pytest.approx(yaw, abs=1e-9)
     assert time_to_ns(goal.header.stamp) == 5_000_000_001
-    est = initialpose_message(x, y, yaw, frame="odom", stamp_ns=7)
+    est = pose_estimate(x, y, yaw, frame_id="odom", stamp_ns=7)
     assert est.header.frame_id == "odom"
     assert _yaw(est.pose.pose.orientation) == pytest.approx(yaw, abs=1e-9)
     assert list(est.pose.covariance) == list(INITIALPOSE_COVARIANCE)

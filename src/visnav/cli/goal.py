@@ -16,8 +16,6 @@ import argparse
 import math
 from typing import Any
 
-import numpy as np
-
 from visnav.cli._common import cli_node
 from visnav.cli.topic import wait_for_matching_subscriptions
 from visnav.errors import VisnavError
@@ -25,31 +23,11 @@ from visnav.graph import Parameter
 from visnav.graph.action_client import ActionClient
 from visnav.graph.action_types import ActionError, GoalStatus
 from visnav.graph.node import Node
-from visnav.msgs import (
-    Header,
-    Point,
-    Pose,
-    PoseStamped,
-    PoseWithCovariance,
-    PoseWithCovarianceStamped,
-    Quaternion,
-)
+from visnav.msgs import PoseStamped, PoseWithCovarianceStamped
 from visnav.msgs.action import get_action_type
-from visnav.msgs.time import ns_to_time
+from visnav.msgs.rviz_tools import nav_goal, pose_estimate
 
-__all__ = [
-    "INITIALPOSE_COVARIANCE",
-    "GoalArgumentError",
-    "add_arguments",
-    "add_initialpose_arguments",
-    "goal_message",
-    "initialpose_message",
-]
-
-INITIALPOSE_COVARIANCE: tuple[float, ...] = tuple(
-    {0: 0.5**2, 7: 0.5**2, 35: (math.pi / 12.0) ** 2}.get(i, 0.0) for i in range(36)
-)
-"""RViz's InitialPoseTool: x, y standard deviation 0.5 m, yaw pi/12 rad."""
+__all__ = ["GoalArgumentError", "add_arguments", "add_initialpose_arguments"]
 
 
 class GoalArgumentError(VisnavError, ValueError):
@@ -65,33 +43,6 @@ def _finite(name: str, text: str) -> float:
         msg = f"{name} is {text!r}: expected a finite number (metres, or radians for yaw)"
         raise GoalArgumentError(msg)
     return value
-
-
-def _pose(x: float, y: float, yaw: float) -> Pose:
-    return Pose(
-        position=Point(x=x, y=y, z=0.0),
-        orientation=Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0)),
-    )
-
-
-def goal_message(x: float, y: float, yaw: float, *, frame: str, stamp_ns: int) -> PoseStamped:
-    """The PoseStamped RViz's 2D Nav Goal sends for a click at ``(x, y)`` towards ``yaw``."""
-    header = Header(stamp=ns_to_time(stamp_ns), frame_id=frame)
-    return PoseStamped(header=header, pose=_pose(x, y, yaw))
-
-
-def initialpose_message(
-    x: float, y: float, yaw: float, *, frame: str, stamp_ns: int
-) -> PoseWithCovarianceStamped:
-    """The PoseWithCovarianceStamped RViz's 2D Pose Estimate sends."""
-    header = Header(stamp=ns_to_time(stamp_ns), frame_id=frame)
-    return PoseWithCovarianceStamped(
-        header=header,
-        pose=PoseWithCovariance(
-            pose=_pose(x, y, yaw),
-            covariance=np.array(INITIALPOSE_COVARIANCE, dtype=np.float64),
-        ),
-    )
 
 
 def _common(p: argparse.ArgumentParser, topic: str) -> None:
@@ -153,7 +104,7 @@ def cmd_goal(args: argparse.Namespace) -> int:
     """``visnav goal X Y [YAW]``."""
     x, y, yaw = _pose_args(args)
     with cli_node(args) as node:
-        msg = goal_message(x, y, yaw, frame=args.frame, stamp_ns=_now_ns(node))
+        msg = nav_goal(x, y, yaw, frame_id=args.frame, stamp_ns=_now_ns(node))
         if not args.wait:
             _publish_once(node, PoseStamped, args.topic, msg, args.timeout)
             print(f"goal ({x:g}, {y:g}, yaw {yaw:g}) in '{args.frame}' sent on {args.topic}")
@@ -198,7 +149,7 @@ def cmd_initialpose(args: argparse.Namespace) -> int:
     """``visnav initialpose X Y [YAW]``."""
     x, y, yaw = _pose_args(args)
     with cli_node(args) as node:
-        msg = initialpose_message(x, y, yaw, frame=args.frame, stamp_ns=_now_ns(node))
+        msg = pose_estimate(x, y, yaw, frame_id=args.frame, stamp_ns=_now_ns(node))
         _publish_once(node, PoseWithCovarianceStamped, args.topic, msg, args.timeout)
         print(f"pose estimate ({x:g}, {y:g}, yaw {yaw:g}) in '{args.frame}' sent on {args.topic}")
     return 0

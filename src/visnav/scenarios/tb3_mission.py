@@ -25,21 +25,16 @@ from scipy import ndimage
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.mapping.map_io import OccupancyMap, load_map
-from visnav.msgs.construct import make
+from visnav.msgs.rviz_tools import nav_goal, pose_estimate
 from visnav.msgs.serde import get_message_class
-from visnav.msgs.time import ns_to_time
-from visnav.msgs.types import Header, PoseStamped, PoseWithCovarianceStamped
+from visnav.msgs.types import PoseStamped, PoseWithCovarianceStamped
 from visnav.scenarios.errors import ScenarioError
 from visnav.scenarios.observer_metrics import ENDED_STATUSES
-from visnav.tf.transforms import quaternion_from_yaw
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
 __all__ = ["Tb3Goals", "Tb3GoalsParams", "map_goals"]
-
-_RVIZ_COV_XY = 0.25
-_RVIZ_COV_YAW = (math.pi / 12.0) ** 2
 
 
 def map_goals(
@@ -170,25 +165,14 @@ class Tb3Goals(Node):
 
     def _send_pose(self, now: int) -> None:
         p = self.params
-        msg: PoseWithCovarianceStamped = make(PoseWithCovarianceStamped)
-        msg.header = Header(stamp=ns_to_time(now), frame_id=p.frame_id)
-        pose = msg.pose.pose
-        pose.position.x, pose.position.y = p.initial_x, p.initial_y
-        pose.orientation = quaternion_from_yaw(p.initial_yaw)
-        cov = np.zeros(36)
-        cov[0] = cov[7] = _RVIZ_COV_XY
-        cov[35] = _RVIZ_COV_YAW
-        msg.pose.covariance = cov
+        msg = pose_estimate(
+            p.initial_x, p.initial_y, p.initial_yaw, frame_id=p.frame_id, stamp_ns=now
+        )
         self._pose_pub.publish(msg)
         self._pose_sent = True
 
     def _send_goal(self) -> None:
         x, y, yaw = self.goals[self._sent]
         self._sent += 1
-        msg: PoseStamped = make(PoseStamped)
-        msg.header = Header(
-            stamp=ns_to_time(self.get_clock().now_ns()), frame_id=self.params.frame_id
-        )
-        msg.pose.position.x, msg.pose.position.y = x, y
-        msg.pose.orientation = quaternion_from_yaw(yaw)
-        self._goal_pub.publish(msg)
+        now = self.get_clock().now_ns()
+        self._goal_pub.publish(nav_goal(x, y, yaw, frame_id=self.params.frame_id, stamp_ns=now))
