@@ -129,7 +129,9 @@ def write_csv(sweep_dir: Path, state: dict[str, Any]) -> Path:
     for run in state["runs"]:
         row = {k: run.get(k) for k in base}
         row.update({f"set.{k}": v for k, v in run["options"].items()})
-        row.update(flatten(run.get("summary") or {}))
+        # a summary key that is also a run column (the run's own `status`) keeps its prefix
+        for key, value in flatten(run.get("summary") or {}).items():
+            row[f"summary.{key}" if key in base else key] = value
         extra.update(dict.fromkeys(k for k in row if k not in base))
         rows.append(row)
     path = sweep_dir / CSV_NAME

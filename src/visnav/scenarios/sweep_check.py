@@ -2,7 +2,8 @@
 
 Two runs of a scenario with the same seed and options are the same run when their
 summaries agree on every key but the wall-clock ones (``wall_duration_s``,
-``real_time_factor``) and the output path (``bag``), and the ground-truth odometry in
+``real_time_factor``, and the bag's size, whose chunks are flushed on a wall-clock period)
+and the output path (``bag``), and the ground-truth odometry in
 their bags is byte-identical (the serialized messages, so the trajectories are
 bit-identical).
 """
@@ -18,7 +19,7 @@ from visnav.scenarios.report_plots import TRAJECTORY_TOPICS
 
 __all__ = ["WALL_KEYS", "run_differences", "summary_differences", "trajectory_digest"]
 
-WALL_KEYS = ("wall_duration_s", "real_time_factor", "bag")
+WALL_KEYS = ("wall_duration_s", "real_time_factor", "bag", "bag_bytes", "bag_mb_per_sim_s")
 """Summary keys that depend on the machine or the output path, not on the run."""
 
 
