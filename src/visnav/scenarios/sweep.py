@@ -129,9 +129,13 @@ def write_csv(sweep_dir: Path, state: dict[str, Any]) -> Path:
     for run in state["runs"]:
         row = {k: run.get(k) for k in base}
         row.update({f"set.{k}": v for k, v in run["options"].items()})
-        # a summary key that is also a run column (the run's own `status`) keeps its prefix
+        # a summary value that differs from the run's own column of that name (the
+        # summary's `status` beside the sweep's) goes to summary.<key>
         for key, value in flatten(run.get("summary") or {}).items():
-            row[f"summary.{key}" if key in base else key] = value
+            if key not in base:
+                row[key] = value
+            elif row[key] != value:
+                row[f"summary.{key}"] = value
         extra.update(dict.fromkeys(k for k in row if k not in base))
         rows.append(row)
     path = sweep_dir / CSV_NAME
