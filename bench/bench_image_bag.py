@@ -2,6 +2,10 @@
 
 Run: ``python bench/bench_image_bag.py`` (``--duration S`` simulated seconds per run, default
 3; ``--ideal-sensors`` also measures the noise-free cameras; ``--repeats N`` encode repeats).
+``--runs RAW_DIR COMPRESSED_DIR`` reads two finished runs instead (e.g. 30 s runs made with
+``visnav run car --duration 30 --record-images [--raw-images] --out DIR``, which take ~17 min
+each on a loaded 2-core machine) and prints the same figure with the bytes per frame of each
+image topic; it also prints compressedDepth's quantisation error at 1, 3 and 5 m.
 
 * Bag size: two short car runs in this process, ``visnav run car --record-images
   --raw-images`` (the reference: images as published, zstd MCAP chunks as every run's bag)
@@ -101,13 +105,72 @@ def _encode_costs(frames: dict[str, list[bytes]], repeats: int) -> None:
             )
 
 
+def _per_topic(bag: str) -> dict[str, tuple[int, int]]:
+    """``{image topic: (messages, CDR bytes)}`` of a bag's Image / CompressedImage topics."""
+    from visnav.bag import BagReader
+
+    out: dict[str, tuple[int, int]] = {}
+    with BagReader(bag) as reader:
+        kinds = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+        topics = [n for n, m in reader.topics.items() if m.type_name in kinds]
+        for raw in reader.raw_messages(topics):
+            n, size = out.get(raw.topic, (0, 0))
+            out[raw.topic] = (n + 1, size + len(raw.data))
+    return out
+
+
+def _from_runs(raw_dir: Path, compressed_dir: Path) -> None:
+    import json
+
+    rows = {}
+    for label, folder in (("raw images", raw_dir), ("compressed", compressed_dir)):
+        s = json.loads((folder / "summary.json").read_text())
+        rows[label] = s
+        print(
+            f"  {label:<11} bag {s['bag_bytes'] / 1e6:8.2f} MB over {s['sim_duration_s']:g} "
+            f"simulated s: {s['bag_mb_per_sim_s']:7.3f} MB per simulated s  "
+            f"(RTF {s['real_time_factor']})"
+        )
+        for topic, (n, size) in sorted(_per_topic(s["bag"]).items()):
+            print(f"      {topic:<48} {n:5d} msgs {size / max(n, 1) / 1e3:8.1f} KB each")
+    ratio = rows["raw images"]["bag_bytes"] / rows["compressed"]["bag_bytes"]
+    verdict = "meets" if ratio >= 8.0 else "misses"
+    print(f"  ratio raw / compressed: {ratio:.2f}x ({verdict} the goal >= 8x)")
+
+
+def _quantisation_error() -> None:
+    import numpy as np
+
+    from visnav.bag.image_compression import ImageCompression, decode_image
+    from visnav.msgs.image import image_to_numpy, numpy_to_image
+
+    print("compressedDepth 32FC1 quantisation (defaults: depth_quantization 100, depth_max 10):")
+    for metres in (1.0, 3.0, 5.0):
+        depth = np.linspace(metres - 0.01, metres + 0.01, 4096, dtype=np.float32).reshape(64, 64)
+        msg = ImageCompression().encode(numpy_to_image(depth, "32FC1"), "compressedDepth")
+        err = image_to_numpy(decode_image(msg)).astype(np.float64) - depth
+        print(
+            f"  {metres:g} m: error {err.min() * 1e3:+.3f} .. {err.max() * 1e3:+.3f} mm, "
+            f"mean {err.mean() * 1e3:+.3f} mm (step d^2/(A-d) = "
+            f"{metres**2 / (10100 - metres) * 1e3:.3f} mm)"
+        )
+
+
 def main() -> None:
     """Run the benchmark and print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--duration", type=float, default=3.0, help="simulated s per run")
     parser.add_argument("--repeats", type=int, default=3, help="encode passes (median)")
     parser.add_argument("--ideal-sensors", action="store_true", help="also noise-free")
+    parser.add_argument(
+        "--runs", nargs=2, type=Path, metavar=("RAW_DIR", "COMPRESSED_DIR"), help="finished runs"
+    )
     args = parser.parse_args()
+    if args.runs is not None:
+        print(f"car runs {args.runs[0]} (raw images) and {args.runs[1]} (compressed):")
+        _from_runs(*args.runs)
+        _quantisation_error()
+        return
     cases = [False, True] if args.ideal_sensors else [False]
     with tempfile.TemporaryDirectory(prefix="bench_image_bag_") as tmp:
         frames: dict[str, list[bytes]] = {}

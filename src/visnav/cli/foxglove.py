@@ -54,7 +54,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="*",
         default=None,
         metavar="CAP",
-        help="offer only these: clientPublish parameters parametersSubscribe services time",
+        help=(
+            "offer only these: clientPublish parameters parametersSubscribe services "
+            "connectionGraph assets time (default: all)"
+        ),
+    )
+    parser.add_argument(
+        "--asset-uri-allowlist",
+        nargs="+",
+        default=None,
+        metavar="REGEX",
+        help=(
+            "asset URIs clients may fetch (asset_uri_allowlist; default foxglove_bridge's: "
+            "meshes, textures and URDFs under package://)"
+        ),
+    )
+    parser.add_argument(
+        "--package",
+        action="append",
+        default=[],
+        metavar="NAME=DIR",
+        help="a package for package:// assets besides ROS_PACKAGE_PATH (repeatable)",
     )
     time = parser.add_mutually_exclusive_group()
     time.add_argument(
@@ -72,6 +92,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def cmd_foxglove(args: argparse.Namespace) -> int:
     """``foxglove``: serve until Ctrl-C (or ``--duration``)."""
+    from visnav.bridge.foxglove.assets import DEFAULT_ASSET_URI_ALLOWLIST
     from visnav.bridge.foxglove.node import run_foxglove
     from visnav.bridge.foxglove.protocol import CAPABILITIES
     from visnav.bridge.foxglove.server import FoxgloveOptions
@@ -85,6 +106,12 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
         send_buffer_limit=args.send_buffer_limit,
         capabilities=CAPABILITIES if args.capabilities is None else tuple(args.capabilities),
         include_hidden=args.include_hidden,
+        asset_uri_allowlist=(
+            DEFAULT_ASSET_URI_ALLOWLIST
+            if args.asset_uri_allowlist is None
+            else tuple(args.asset_uri_allowlist)
+        ),
+        packages=_packages(args.package),
     )
     with Context(args.domain) as ctx:
         if args.sim_time is None:
@@ -97,6 +124,19 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
             on_ready=_announce,
         )
     return 0
+
+
+def _packages(items: list[str]) -> dict[str, str]:
+    from visnav.bridge.foxglove.errors import FoxgloveError
+
+    out = {}
+    for item in items:
+        name, sep, folder = item.partition("=")
+        if not sep or not name or not folder:
+            msg = f"--package {item!r}: expected NAME=DIR, e.g. turtlebot3_description=./tb3"
+            raise FoxgloveError(msg)
+        out[name] = folder
+    return out
 
 
 def _announce(server: FoxgloveServer) -> None:

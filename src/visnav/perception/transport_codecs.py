@@ -27,8 +27,9 @@ JPEG (ROS saturates them to 8 bits; use PNG); a 32FC1 depth too close to be
 represented in 16 bits (below ``A / (65535 - B)``, 0.15 m by default), zero,
 negative or infinite is stored as invalid (0, decoded as NaN) where ROS's
 float-to-integer conversion is undefined; a PNG without a ``';'`` in its format
-that decodes to 16 bits is labelled ``mono16``/``bgr16`` (ROS says ``mono8``/``bgr8``);
-the RVL variant of compressedDepth is not supported.
+that decodes to 16 bits is labelled ``mono16``/``bgr16`` (ROS says ``mono8``/``bgr8``).
+The RVL variant of compressedDepth (``"<encoding>; compressedDepth rvl"``, ROS's
+``format`` parameter ``rvl``) is read and written too (:mod:`visnav.perception.rvl_codec`).
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from visnav.msgs.image import (
 )
 from visnav.msgs.types import CompressedImage, Header, Image, Time
 from visnav.perception.errors import PerceptionError
+from visnav.perception.rvl_codec import RvlError, compress_rvl, decompress_rvl
 
 __all__ = [
     "COMPRESSED_DEPTH_HEADER",
@@ -454,6 +456,7 @@ def compress_depth(
     depth_max: float = 10.0,
     depth_quantization: float = 100.0,
     png_level: int = 9,
+    compression_format: str = "png",
 ) -> CompressedImage:
     """Compress a depth image for the ``compressedDepth`` transport.
 
@@ -463,10 +466,13 @@ def compress_depth(
         depth_quantization: the depth (m) at which the 32FC1 quantisation step is
             1 m; larger keeps more precision. ROS default 100.
         png_level: zlib level 0-9.
+        compression_format: ``"png"`` (ROS default) or ``"rvl"`` (ROS's ``format``
+            parameter; larger than PNG on noisy depth, faster to decode).
 
     Returns:
         A ``CompressedImage`` with format ``"<encoding>; compressedDepth png"`` and
-        ``data`` = 12-byte ConfigHeader + 16-bit PNG, decodable by ROS subscribers.
+        ``data`` = 12-byte ConfigHeader + 16-bit PNG (``rvl``: ``uint32 cols, rows`` and
+        the RVL stream), decodable by ROS subscribers.
 
     Raises:
         ImageTransportError: any other encoding (e.g. a colour image), a parameter
@@ -479,6 +485,9 @@ def compress_depth(
             "(millimetres) or 32FC1 (metres); use the compressed transport for other images"
         )
         raise ImageTransportError(text)
+    if compression_format not in ("png", "rvl"):
+        text = f"compression_format is {compression_format!r}: expected 'png' or 'rvl'"
+        raise ImageTransportError(text)
     depth_max = check_positive(depth_max, "depth_max")
     depth_quantization = check_positive(depth_quantization, "depth_quantization")
     params = [cv2.IMWRITE_PNG_COMPRESSION, check_int(png_level, "png_level", 0, 9)]
@@ -487,16 +496,20 @@ def compress_depth(
         a, b = depth_quantization_params(depth_max, depth_quantization)
         inv = _quantise_inverse_depth(depth, a, b, depth_max)
         header = COMPRESSED_DEPTH_HEADER.pack(_INV_DEPTH, a, b)
-        png = _encode(".png", inv, params, "the quantised inverse depth")
+        pixels, what = inv, "the quantised inverse depth"
     else:
         limit = int(np.float32(depth_max) * np.float32(1000.0))  # ROS: unsigned short cast
-        raw = np.where(depth > limit, np.uint16(0), depth).astype(np.uint16)
+        pixels = np.where(depth > limit, np.uint16(0), depth).astype(np.uint16)
         header = COMPRESSED_DEPTH_HEADER.pack(_INV_DEPTH, 0.0, 0.0)
-        png = _encode(".png", raw, params, f"a {encoding} depth image")
-    data = np.concatenate([np.frombuffer(header, dtype=np.uint8), png])
+        what = f"a {encoding} depth image"
+    if compression_format == "png":
+        body = _encode(".png", pixels, params, what)
+    else:
+        body = np.frombuffer(compress_rvl(pixels), dtype=np.uint8)
+    data = np.concatenate([np.frombuffer(header, dtype=np.uint8), body])
     return CompressedImage(
         header=_copy_header(image.header),
-        format=f"{encoding}; compressedDepth png",
+        format=f"{encoding}; compressedDepth {compression_format}",
         data=data,
     )
 
@@ -516,26 +529,23 @@ def decompress_depth(msg: CompressedImage) -> Image:
     """Decode a ``compressedDepth`` message (from visnav or from ROS) into an Image.
 
     Accepts the format strings ROS has written over the years
-    (``"32FC1; compressedDepth png"``, ``"16UC1; compressedDepth"`` and a bare
-    ``"32FC1"``). ``32FC1`` is decoded from the quantised inverse depth with the
-    header's (A, B), invalid pixels becoming NaN; ``16UC1``/``mono16`` are the PNG
-    pixels unchanged.
+    (``"32FC1; compressedDepth png"``, ``"16UC1; compressedDepth"``, a bare ``"32FC1"``)
+    and the RVL variant (``"32FC1; compressedDepth rvl"``). ``32FC1`` is decoded from
+    the quantised inverse depth with the header's (A, B), invalid pixels becoming NaN;
+    ``16UC1``/``mono16`` are the stored pixels unchanged.
 
     Raises:
-        ImageTransportError: an unsupported variant (RVL), data no longer than the
-            12-byte header, undecodable PNG data or pixels that are not one 16-bit
-            channel.
+        ImageTransportError: an unknown variant, data no longer than the 12-byte header,
+            undecodable PNG/RVL data or PNG pixels that are not one 16-bit channel.
     """
     fmt = msg.format
     encoding, sep, rest = fmt.partition(";")
     encoding = encoding.strip()
-    if sep and "compressedDepth png" not in rest:
-        if "compressedDepth rvl" in rest:
-            text = f"CompressedImage.format {fmt!r}: the RVL compressedDepth codec is not supported"
-            raise ImageTransportError(text)
-        if "compressedDepth" not in rest or "compressedDepth " in rest:
-            text = f"CompressedImage.format {fmt!r} is not a compressedDepth PNG format"
-            raise ImageTransportError(text)
+    rvl = bool(sep) and "compressedDepth rvl" in rest and "compressedDepth png" not in rest
+    other = "compressedDepth" not in rest or "compressedDepth " in rest
+    if sep and "compressedDepth png" not in rest and not rvl and other:
+        text = f"CompressedImage.format {fmt!r} is not a compressedDepth PNG or RVL format"
+        raise ImageTransportError(text)
     if encoding not in ("16UC1", "mono16", "32FC1"):
         text = (
             f"CompressedImage.format {fmt!r}: compressedDepth carries 16UC1, mono16 or 32FC1, "
@@ -551,7 +561,14 @@ def decompress_depth(msg: CompressedImage) -> Image:
         )
         raise ImageTransportError(text)
     _, a, b = COMPRESSED_DEPTH_HEADER.unpack(buf[:size].tobytes())
-    pixels = _decode(buf[size:], f"format {fmt!r}")
+    if rvl:
+        try:
+            pixels = decompress_rvl(buf[size:])
+        except RvlError as exc:
+            text = f"CompressedImage.format {fmt!r}: {exc}"
+            raise ImageTransportError(text) from exc
+    else:
+        pixels = _decode(buf[size:], f"format {fmt!r}")
     if pixels.dtype != np.uint16 or pixels.ndim != 2:
         text = (
             f"compressedDepth PNG decodes to {pixels.dtype} with shape {pixels.shape}: "

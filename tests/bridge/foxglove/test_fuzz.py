@@ -28,6 +28,7 @@ OPS = [
     "subscribeParameterUpdates",
     "unsubscribeParameterUpdates",
     "subscribeConnectionGraph",
+    "unsubscribeConnectionGraph",
     "fetchAsset",
     "nonsense",
 ]
@@ -47,6 +48,8 @@ FIELDS = [
     "name",
     "value",
     "type",
+    "uri",
+    "requestId",
 ]
 _scalars = st.one_of(
     st.none(),
@@ -54,6 +57,15 @@ _scalars = st.one_of(
     st.integers(-(2**40), 2**40),
     st.floats(allow_nan=False, allow_infinity=False),
     st.sampled_from(["cdr", "json", "/map", "/x.y", "geometry_msgs/msg/PoseStamped", "float64"]),
+    st.sampled_from(
+        [
+            "package://turtlebot3_description/meshes/bases/burger_base.stl",
+            "package://turtlebot3_description/../../../etc/passwd",
+            "package://x/%2e%2e/y.stl",
+            "file:///etc/passwd",
+            "file:///dev/zero",
+        ]
+    ),
     st.text(max_size=12),
 )
 _json = st.recursive(

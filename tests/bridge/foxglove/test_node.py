@@ -53,8 +53,8 @@ def test_node_serves_with_its_parameters() -> None:
 
 
 def test_node_refuses_a_bad_capability() -> None:
-    with Context(transport="local") as ctx, pytest.raises(FoxgloveError, match="connectionGraph"):
-        FoxgloveBridgeNode(context=ctx, parameter_overrides={"capabilities": ["connectionGraph"]})
+    with Context(transport="local") as ctx, pytest.raises(FoxgloveError, match="playback"):
+        FoxgloveBridgeNode(context=ctx, parameter_overrides={"capabilities": ["playback"]})
 
 
 @pytest.mark.slow

@@ -65,6 +65,8 @@ def test_both_subprotocols_are_accepted(
         "parameters",
         "parametersSubscribe",
         "services",
+        "connectionGraph",
+        "assets",
     }
     assert info["supportedEncodings"] == ["cdr", "json"]
     assert info["metadata"]["ROS_DISTRO"] == "humble"
@@ -99,8 +101,8 @@ def test_binds_loopback_by_default_and_names_a_busy_port(graph: Spun) -> None:
 def test_bad_options_are_refused() -> None:
     with pytest.raises(FoxgloveError, match="topic_whitelist"):
         FoxgloveOptions(topic_whitelist=("(",))
-    with pytest.raises(FoxgloveError, match="assets"):
-        FoxgloveOptions(capabilities=("assets",))
+    with pytest.raises(FoxgloveError, match="playback"):
+        FoxgloveOptions(capabilities=("playback",))
 
 
 def test_topics_advertised_with_schema_and_sent_as_published(

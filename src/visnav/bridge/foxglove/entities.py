@@ -78,12 +78,13 @@ class ClientPub:
 
 @dataclass
 class ClientState:
-    """One client's subscriptions, client channels and watched parameter names."""
+    """One client's subscriptions, client channels, watched parameters and graph subscription."""
 
     subs: dict[int, int] = field(default_factory=dict)  # subscription id -> channel id
     graph_subs: dict[int, Subscription[Any]] = field(default_factory=dict)
     pubs: dict[int, ClientPub] = field(default_factory=dict)
     param_names: set[str] = field(default_factory=set)
+    graph_subscribed: bool = False  # connectionGraph updates wanted
     gone: bool = False
 
 

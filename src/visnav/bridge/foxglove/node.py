@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from visnav.bridge.foxglove.assets import DEFAULT_ASSET_URI_ALLOWLIST
 from visnav.bridge.foxglove.protocol import CAPABILITIES
 from visnav.bridge.foxglove.server import FoxgloveOptions, FoxgloveServer
 from visnav.graph import Context, Node, NodeOptions
@@ -63,6 +64,13 @@ class FoxgloveParams:
     service_timeout: float = param(
         5.0, description="timeout of a service call made for a client, s", range=(0.01, 3600.0)
     )
+    asset_uri_allowlist: tuple[str, ...] = param(
+        DEFAULT_ASSET_URI_ALLOWLIST,
+        description="regular expressions of the asset URIs clients may fetch (fetchAsset)",
+    )
+    packages: tuple[str, ...] = param(
+        ("",), description="name=DIR for package:// assets (besides ROS_PACKAGE_PATH)"
+    )
 
 
 def _options(params: FoxgloveParams, name: str) -> FoxgloveOptions:
@@ -81,6 +89,10 @@ def _options(params: FoxgloveParams, name: str) -> FoxgloveOptions:
         use_compression=params.use_compression,
         service_timeout_s=params.service_timeout,
         name=name,
+        asset_uri_allowlist=tuple(params.asset_uri_allowlist),
+        packages=dict(
+            item.split("=", 1) for item in params.packages if "=" in item and item.split("=", 1)[1]
+        ),
     )
 
 

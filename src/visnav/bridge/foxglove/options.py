@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
+from visnav.bridge.foxglove.assets import DEFAULT_ASSET_URI_ALLOWLIST, compile_allowlist
 from visnav.bridge.foxglove.errors import FoxgloveError
 from visnav.bridge.foxglove.protocol import CAPABILITIES
 
@@ -31,6 +32,11 @@ class FoxgloveOptions:
         use_compression: offer permessage-deflate (off: images cost CPU to compress).
         service_timeout_s: timeout of a service call made for a client.
         name: the server name clients show.
+        asset_uri_allowlist: regular expressions (full match, ignoring case) of the asset
+            URIs served to ``fetchAsset`` (foxglove_bridge's default: files of meshes,
+            textures and URDFs inside ROS packages).
+        packages: ``package name -> directory`` for ``package://`` assets, searched
+            before visnav's own and ``ROS_PACKAGE_PATH``.
     """
 
     address: str = "127.0.0.1"
@@ -47,11 +53,14 @@ class FoxgloveOptions:
     use_compression: bool = False
     service_timeout_s: float = 5.0
     name: str = "visnav"
+    asset_uri_allowlist: tuple[str, ...] = DEFAULT_ASSET_URI_ALLOWLIST
+    packages: Mapping[str, str] = field(default_factory=dict, hash=False)
 
     def __post_init__(self) -> None:
         for key in ("topic_whitelist", "service_whitelist", "param_whitelist"):
             compile_patterns(key, getattr(self, key))
         compile_patterns("client_topic_whitelist", self.client_topic_whitelist)
+        compile_allowlist(self.asset_uri_allowlist)
         unknown = sorted(set(self.capabilities) - set(CAPABILITIES))
         if unknown:
             msg = (

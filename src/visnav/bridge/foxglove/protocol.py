@@ -25,6 +25,7 @@ __all__ = [
     "CallService",
     "ClientChannel",
     "ClientMessage",
+    "FetchAsset",
     "GetParameters",
     "PublishData",
     "SetParameters",
@@ -34,6 +35,7 @@ __all__ = [
     "Unadvertise",
     "Unsubscribe",
     "UnsubscribeParameterUpdates",
+    "encode_fetch_asset_response",
     "encode_message_data",
     "encode_service_response",
     "encode_time",
@@ -45,8 +47,16 @@ SUBPROTOCOLS = ("foxglove.websocket.v1", "foxglove.sdk.v1")
 """Subprotocols accepted, in order of preference: the spec's (Lichtblick, ``@foxglove/ws-protocol``,
 foxglove_bridge) and the Foxglove SDK's newer name (Foxglove app)."""
 
-CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services", "time")
-"""Capabilities this server can offer (``connectionGraph`` and ``assets`` are not served)."""
+CAPABILITIES = (
+    "clientPublish",
+    "parameters",
+    "parametersSubscribe",
+    "services",
+    "connectionGraph",
+    "assets",
+    "time",
+)
+"""Capabilities this server can offer (foxglove_bridge's defaults; ``time`` with sim time)."""
 
 MAX_TEXT_CHARS = 16 << 20
 """Largest JSON frame accepted (16 MiB of text)."""
@@ -55,6 +65,7 @@ MAX_TEXT_CHARS = 16 << 20
 _OP_MESSAGE_DATA = 0x01
 _OP_TIME = 0x02
 _OP_SERVICE_RESPONSE = 0x03
+_OP_FETCH_ASSET_RESPONSE = 0x04
 # binary opcodes, client -> server
 _COP_MESSAGE_DATA = 0x01
 _COP_SERVICE_REQUEST = 0x02
@@ -62,6 +73,7 @@ _COP_SERVICE_REQUEST = 0x02
 _MSG_HEADER = struct.Struct("<BIQ")
 _TIME = struct.Struct("<BQ")
 _SRV_HEADER = struct.Struct("<BIII")
+_ASSET_HEADER = struct.Struct("<BIBI")
 _U32 = struct.Struct("<I")
 _U32_MAX = 0xFFFFFFFF
 _U64_MAX = 0xFFFFFFFFFFFFFFFF
@@ -157,9 +169,17 @@ class UnsubscribeParameterUpdates:
 
 @dataclass(frozen=True)
 class SubscribeGraph:
-    """``subscribeConnectionGraph`` / ``unsubscribeConnectionGraph`` (not served)."""
+    """``subscribeConnectionGraph`` (True) / ``unsubscribeConnectionGraph`` (False)."""
 
     subscribe: bool
+
+
+@dataclass(frozen=True)
+class FetchAsset:
+    """``fetchAsset``: an asset URI and the uint32 request id to answer with."""
+
+    uri: str
+    request_id: int
 
 
 ClientMessage = (
@@ -174,6 +194,7 @@ ClientMessage = (
     | SubscribeParameterUpdates
     | UnsubscribeParameterUpdates
     | SubscribeGraph
+    | FetchAsset
 )
 
 
@@ -312,9 +333,12 @@ def _parse_json(text: str) -> ClientMessage:
         return UnsubscribeParameterUpdates(_strings(obj, op, "parameterNames"))
     if op in ("subscribeConnectionGraph", "unsubscribeConnectionGraph"):
         return SubscribeGraph(op == "subscribeConnectionGraph")
+    if op == "fetchAsset":
+        return FetchAsset(_field(obj, op, "uri", str), _uint(obj, op, "requestId"))
     known = (
         "subscribe, unsubscribe, advertise, unadvertise, getParameters, setParameters, "
-        "subscribeParameterUpdates, unsubscribeParameterUpdates"
+        "subscribeParameterUpdates, unsubscribeParameterUpdates, subscribeConnectionGraph, "
+        "unsubscribeConnectionGraph, fetchAsset"
     )
     raise _fail(op, f"unknown operation (expected one of {known})")
 
@@ -398,3 +422,19 @@ def encode_service_response(service_id: int, call_id: int, encoding: str, payloa
     """Binary service call response (opcode 0x03)."""
     enc = encoding.encode()
     return _SRV_HEADER.pack(_OP_SERVICE_RESPONSE, service_id, call_id, len(enc)) + enc + payload
+
+
+def encode_fetch_asset_response(
+    request_id: int, *, data: bytes = b"", error: str | None = None
+) -> bytes:
+    """Binary fetch asset response (opcode 0x04): the asset's bytes, or (``error``) status 1.
+
+    Args:
+        request_id: the ``requestId`` of the client's ``fetchAsset``.
+        data: the file's contents (status 0).
+        error: why the asset cannot be served (status 1, no data).
+    """
+    if error is None:
+        return _ASSET_HEADER.pack(_OP_FETCH_ASSET_RESPONSE, request_id, 0, 0) + data
+    text = error.encode()
+    return _ASSET_HEADER.pack(_OP_FETCH_ASSET_RESPONSE, request_id, 1, len(text)) + text

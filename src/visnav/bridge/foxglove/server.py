@@ -15,7 +15,12 @@ in step with a visnav graph, the way foxglove_bridge does with ROS 2:
   called with the client's CDR (or JSON) request;
 * ``parameters`` / ``parametersSubscribe``: through every node's parameter services and
   ``/parameter_events`` (:mod:`~visnav.bridge.foxglove.params`);
-* ``time``: with ``use_sim_time`` the ``/clock`` time is sent to clients.
+* ``time``: with ``use_sim_time`` the ``/clock`` time is sent to clients;
+* ``connectionGraph``: the nodes publishing, subscribing and serving, whole on
+  ``subscribeConnectionGraph`` then as it changes
+  (:mod:`~visnav.bridge.foxglove.connection_graph`);
+* ``assets``: ``fetchAsset`` of ``package://`` (and allowed ``file://``) files, such as the
+  meshes of ``robot_description`` (:mod:`~visnav.bridge.foxglove.assets`).
 
 Graph changes asked for by clients (subscriptions, publishers) run in order on one worker
 thread; service and parameter calls on a small pool, so a slow service never blocks data.
@@ -31,6 +36,13 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
+from visnav.bridge.foxglove.assets import AssetError, AssetResolver
+from visnav.bridge.foxglove.connection_graph import (
+    GraphSnapshot,
+    full_update,
+    graph_snapshot,
+    graph_update,
+)
 from visnav.bridge.foxglove.entities import (
     Channel,
     ClientPub,
@@ -45,6 +57,7 @@ from visnav.bridge.foxglove.protocol import (
     Advertise,
     CallService,
     ClientMessage,
+    FetchAsset,
     GetParameters,
     PublishData,
     SetParameters,
@@ -54,6 +67,7 @@ from visnav.bridge.foxglove.protocol import (
     Unadvertise,
     Unsubscribe,
     UnsubscribeParameterUpdates,
+    encode_fetch_asset_response,
     encode_message_data,
     encode_service_response,
     encode_time,
@@ -122,6 +136,9 @@ class FoxgloveServer:
         self._graph_worker = ThreadPoolExecutor(1, thread_name_prefix="foxglove-graph")
         self._call_pool = ThreadPoolExecutor(4, thread_name_prefix="foxglove-call")
         self._srv_clients: dict[str, Client[Any, Any]] = {}
+        self._assets = AssetResolver(options.asset_uri_allowlist, packages=options.packages)
+        self._graph_view: GraphSnapshot | None = None  # what graph subscribers were last sent
+        self._graph_lock = threading.Lock()
         self._params = ParameterGateway(
             node, whitelist=options.param_whitelist, timeout_s=min(2.0, options.service_timeout_s)
         )
@@ -212,6 +229,7 @@ class FoxgloveServer:
         self._graph_version = version
         added, removed = self._scan_topics()
         s_added, s_removed = self._scan_services() if "services" in self.capabilities else ([], [])
+        self._send_graph_update()
         if not (added or removed or s_added or s_removed):
             return
         gone = {c.id for c in removed}
@@ -363,8 +381,12 @@ class FoxgloveServer:
         elif isinstance(message, UnsubscribeParameterUpdates):
             state.param_names.difference_update(message.names)
         elif isinstance(message, SubscribeGraph):
-            msg = "the connectionGraph capability is not offered by visnav's Foxglove server"
-            raise FoxgloveError(msg)
+            op = "subscribeConnectionGraph" if message.subscribe else "unsubscribeConnectionGraph"
+            self._require(client, "connectionGraph", op)
+            self._subscribe_graph(client, state, subscribe=message.subscribe)
+        elif isinstance(message, FetchAsset):
+            self._require(client, "assets", "fetchAsset")
+            self._submit(self._call_pool, client, lambda: self._fetch_asset(client, message))
 
     def _require(self, client: ClientConnection, capability: str, op: str) -> None:
         if capability not in self.capabilities:
@@ -569,6 +591,61 @@ class FoxgloveServer:
                 "message": text,
             }
         )
+
+    # ------------------------------------------------------------------ graph, assets
+    def _snapshot(self) -> GraphSnapshot:
+        return graph_snapshot(
+            self.node.context.graph,
+            topic_whitelist=self._topic_ok,
+            service_whitelist=self._service_ok,
+            include_hidden=self.options.include_hidden,
+        )
+
+    def _graph_clients(self) -> list[ClientConnection]:
+        with self._lock:
+            clients = list(self._clients.values())
+        return [c for c in clients if _state(c).graph_subscribed]
+
+    def _subscribe_graph(
+        self, client: ClientConnection, state: ClientState, *, subscribe: bool
+    ) -> None:
+        if not subscribe:
+            if not state.graph_subscribed:
+                msg = "unsubscribeConnectionGraph: this client is not subscribed to the graph"
+                raise FoxgloveError(msg)
+            state.graph_subscribed = False
+            return
+        with self._graph_lock:  # one snapshot at a time: updates go out in graph order
+            others = [c for c in self._graph_clients() if c is not client]
+            snapshot = self._snapshot()
+            old, self._graph_view = self._graph_view, snapshot
+            state.graph_subscribed = True
+            update = graph_update(old, snapshot) if old is not None else None
+            for other in others if update is not None else []:
+                other.send_json(update or {})
+            client.send_json(full_update(snapshot))
+
+    def _send_graph_update(self) -> None:
+        with self._graph_lock:
+            clients = self._graph_clients()
+            if not clients:
+                self._graph_view = None
+                return
+            snapshot = self._snapshot()
+            old, self._graph_view = self._graph_view, snapshot
+            update = graph_update(old, snapshot) if old is not None else full_update(snapshot)
+            for client in clients if update is not None else []:
+                client.send_json(update or {})
+
+    def _fetch_asset(self, client: ClientConnection, message: FetchAsset) -> None:
+        try:
+            data = self._assets.read(message.uri)
+        except AssetError as exc:
+            _log.warning("Foxglove: %s", exc)
+            frame = encode_fetch_asset_response(message.request_id, error=str(exc))
+        else:
+            frame = encode_fetch_asset_response(message.request_id, data=data)
+        client.send(frame, droppable=False)
 
     # ------------------------------------------------------------------ parameters, time
     def _get_params(self, client: ClientConnection, message: GetParameters) -> None:
