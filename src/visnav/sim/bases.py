@@ -64,6 +64,7 @@ if TYPE_CHECKING:
 
     from visnav.description.gazebo_specs import PlanarMoveSpec, SkidSteerSpec
     from visnav.graph.node import Node
+    from visnav.sim.rebind import IdMap
 
 __all__ = [
     "PlanarMovePlugin",
@@ -146,6 +147,21 @@ class PlanarMovePlugin(SimPlugin):
     def target(self) -> tuple[float, float, float]:
         """The commanded ``(linear.x, linear.y, angular.z)``."""
         return self._target
+
+    def rewind(self, now_ns: int) -> None:
+        """Sim time went back to ``now_ns``: schedules and the command timeout restart."""
+        spec = self.spec
+        update_period = 0 if spec.update_rate == 0 else round(1e9 / spec.update_rate)
+        publish_period = 0 if spec.odometry_rate == 0 else round(1e9 / spec.odometry_rate)
+        self._update.restart(now_ns + update_period)
+        self._publish.restart(now_ns + publish_period)
+        self._now_ns = self._last_cmd_ns = int(now_ns)
+        self._last_pose = None
+
+    def rebind(self, ids: IdMap) -> None:
+        """Move the same body of a recompiled model (command kept)."""
+        self._body.rebind(ids)
+        self._dof = int(ids.dof([self._dof])[0])
 
     def reset(self, data: mujoco.MjData, now_ns: int) -> None:
         """As gazebo_ros_planar_move's ``Reset()``: command zero, odometry from the new pose."""

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import mujoco
@@ -67,6 +67,9 @@ from visnav.msgs.types import CameraInfo, Header, Image, PointCloud2, RegionOfIn
 from visnav.sim.errors import CameraSensorError
 from visnav.sim.gl import RenderContext, RenderingUnavailableError, select_gl_backend
 from visnav.sim.noise_models import apply_depth_noise, noisy_depth_in_range
+
+if TYPE_CHECKING:
+    from visnav.sim.rebind import IdMap
 
 __all__ = [
     "CameraFrame",
@@ -447,6 +450,18 @@ class CameraSensor:
         )
         rx, ry = _pixel_rays(spec, u, v)
         self._rays = (rx.astype(np.float32), ry.astype(np.float32))
+
+    def rebind(self, ids: IdMap) -> None:
+        """Render the same camera of a recompiled model (in ``ids.render_context``)."""
+        self.close()  # a context of its own is made again for the new model
+        self._owns_context = ids.render_context is None
+        w, h = self.layout.width, self.layout.height
+        self.context = ids.render_context or RenderContext(ids.model, max_width=w, max_height=h)
+        self.model, self.camera_id = ids.model, ids.camera(self.camera_id)
+        flags = self._scene.flags.copy()
+        self._scene = mujoco.MjvScene(self.model, maxgeom=max(1000, 2 * self.model.ngeom + 100))
+        self._scene.flags[:] = flags
+        self._camera.fixedcamid = self.camera_id
 
     def close(self) -> None:
         """Free the render context if this sensor created it."""

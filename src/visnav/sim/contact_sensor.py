@@ -23,7 +23,7 @@ collision element, so the robot description needs no extra tags.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -34,6 +34,9 @@ from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Header
 from visnav.sim.plugins import DEFAULT_QOS, SimPlugin
 from visnav.sim.sensor_timing import SensorClock
+
+if TYPE_CHECKING:
+    from visnav.sim.rebind import IdMap
 
 __all__ = ["CONTACT_TOPIC", "ContactSensor", "geom_label"]
 
@@ -73,22 +76,31 @@ class ContactSensor(SimPlugin):
 
     def __init__(self, node: Node, model: mujoco.MjModel, root_body: int, rate_hz: float) -> None:
         super().__init__(node, "contacts")
-        self._model = model
-        robot_bodies = np.asarray(model.body_rootid) == root_body
-        # per geom: does it belong to the robot (contacts are filtered with numpy)
-        self._robot_geom = robot_bodies[np.asarray(model.geom_bodyid)]
-        self._labels: dict[int, str] = {}  # geom -> label, filled on first contact
+        self._root = int(root_body)
+        self._bind(model)
         self._clock = SensorClock(rate_hz)
         self._status = get_message_class("diagnostic_msgs/msg/DiagnosticStatus")
         self._key_value = get_message_class("diagnostic_msgs/msg/KeyValue")
         self._array = get_message_class("diagnostic_msgs/msg/DiagnosticArray")
         self._pub = node.create_publisher(self._array, CONTACT_TOPIC, DEFAULT_QOS)
 
+    def _bind(self, model: mujoco.MjModel) -> None:
+        self._model = model
+        robot_bodies = np.asarray(model.body_rootid) == self._root
+        # per geom: does it belong to the robot (contacts are filtered with numpy)
+        self._robot_geom = robot_bodies[np.asarray(model.geom_bodyid)]
+        self._labels: dict[int, str] = {}  # geom -> label, filled on first contact
+
     def _label(self, geom: int) -> str:
         label = self._labels.get(geom)
         if label is None:
             label = self._labels[geom] = geom_label(self._model, geom)
         return label
+
+    def rebind(self, ids: IdMap) -> None:
+        """Watch the same robot in a recompiled model (a spawned model is "the rest")."""
+        self._root = ids.body(self._root)
+        self._bind(ids.model)
 
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Publish the contacts at ``now_ns`` when a sample is due."""

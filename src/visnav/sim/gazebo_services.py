@@ -10,7 +10,8 @@ name                               type                            does
 ``/gazebo/reset_world``            ``std_srvs/srv/Empty``          robots back to their spawn
                                                                    poses, velocities zero,
                                                                    plugins reset; time runs on
-``/gazebo/reset_simulation``       ``std_srvs/srv/Empty``          the same (see below)
+``/gazebo/reset_simulation``       ``std_srvs/srv/Empty``          the same, and sim time back
+                                                                   to 0 (``/clock`` too)
 ``/gazebo/pause_physics``          ``std_srvs/srv/Empty``          stop stepping: ``/clock``
                                                                    stands still, callbacks run
 ``/gazebo/unpause_physics``        ``std_srvs/srv/Empty``          step again (no catching up)
@@ -19,9 +20,13 @@ name                               type                            does
                                                                    entity
 ``/gazebo/set_model_state``        ``gazebo_msgs/srv/              move a robot (pose, twist)
                                    SetModelState``
-``/gazebo/spawn_urdf_model``,      ``gazebo_msgs/srv/SpawnModel``  refused (success false)
-``/gazebo/spawn_sdf_model``
-``/gazebo/delete_model``           ``gazebo_msgs/srv/DeleteModel`` refused (success false)
+``/gazebo/spawn_urdf_model``,      ``gazebo_msgs/srv/SpawnModel``  add a URDF or SDF model at
+``/gazebo/spawn_sdf_model``                                        ``initial_pose`` (relative to
+                                                                   ``reference_frame``), its
+                                                                   plugins publishing under
+                                                                   ``robot_namespace``
+``/gazebo/delete_model``           ``gazebo_msgs/srv/DeleteModel`` remove a model, its plugins
+                                                                   and their topics
 =================================  ==============================  ===========================
 
 Entities are named as in ``/gazebo/model_states`` and ``link_states``: a robot by its
@@ -38,13 +43,27 @@ half-computed step from a moved body; the reply is sent at once.
 
 Where visnav differs from gazebo_ros:
 
-* ``reset_simulation`` does what ``reset_world`` does and keeps sim time running: every
-  sensor and plugin of the simulator schedules by sim time and several consumers keep
-  state by stamp (SLAM, AMCL, message_filters caches, bags), so visnav's ``/clock``
-  never goes back; a warning says so once.
-* ``spawn_*_model`` and ``delete_model`` answer ``success: false``: visnav builds the
-  robots into the MuJoCo model at start (the sim node's ``robot`` parameter, a launch
-  file's ``spawn_model``), and plugins hold references into the compiled model.
+* Spawning composes a new MuJoCo model (the world, the robots in order, the new one;
+  :mod:`visnav.sim.rebind`), compiles it and builds the new model's plugins in the
+  service callback (so a model MuJoCo or a plugin rejects is answered ``success: false``
+  with the reason and the simulation is untouched), then moves the simulation onto it at
+  the end of the step: every other body keeps its position and velocity, every plugin its
+  state (odometry, commands, schedules, noise), sim time runs on. Gazebo inserts a model
+  at once; visnav's compile takes a second or more (meshes are loaded again).
+* ``model_xml`` must be URDF or SDF text: a file name or ``model://`` database name is
+  refused (Gazebo's ``spawn_model -database`` is not served). An SDF model is rewritten
+  into URDF (:mod:`visnav.description.sdf_model`): one tree of links; several unjoined
+  links, nested models and ``<include>`` are refused. ``package://`` meshes resolve
+  through ``ROS_PACKAGE_PATH`` / ``AMENT_PREFIX_PATH`` of the simulator's process.
+* A spawned robot keeps the full ``initial_pose`` orientation when it floats; a robot
+  fixed to the world (a ``world`` root link, a ``<static>`` SDF model) takes its yaw only.
+* The world's own models (``ground_plane``, the shapes of the world file) cannot be
+  deleted; robots started with the simulation can, as spawned ones.
+* ``reset_simulation`` rewinds sim time to 0 as Gazebo does: ``/clock`` goes back, every
+  sensor's and plugin's schedule restarts (:meth:`~visnav.sim.plugins.SimPlugin.rewind`);
+  TF listeners clear their buffers on the jump ("Detected jump back in time") and timers
+  re-arm, as in ROS. :attr:`~visnav.sim.simulator.Simulator.elapsed_ns` (durations,
+  real-time pacing) does not go back.
 * Only robots with a free-floating base can be moved; the world's static shapes are not
   models (as in ``model_states``). A position beyond :data:`MAX_POSITION_M` or a velocity
   beyond :data:`MAX_SPEED` is refused (Gazebo takes it and its physics blows up; visnav's
@@ -63,9 +82,13 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from visnav.description.sdf_model import is_sdf, sdf_model_to_urdf
+from visnav.errors import VisnavError
 from visnav.msgs.srv import get_service_type
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Point, Pose, Quaternion, Twist, Vector3
+from visnav.sim.rebind import IdMap, transfer_state
+from visnav.sim.sim_robots import RobotSpawn
 
 if TYPE_CHECKING:
     from visnav.graph.service import Service
@@ -353,13 +376,18 @@ class GazeboServices:
         self._sim.edit(self.reset_world)
         return response
 
+    def reset_simulation(self) -> None:
+        """Gazebo's ``reset_simulation``: sim time back to 0, then :meth:`reset_world`.
+
+        Call it between steps (the service goes through :meth:`Simulator.edit`).
+        """
+        self._sim.rewind()
+        self.reset_world()
+
     def _on_reset_simulation(self, request: Any, response: Any) -> Any:
-        self._sim.node.get_logger().warning(
-            "/gazebo/reset_simulation: the world is reset as by reset_world, but sim time "
-            "keeps running (visnav's /clock never goes back; see visnav.sim.gazebo_services)",
-            once=True,
-        )
-        return self._on_reset_world(request, response)
+        del request
+        self._sim.edit(self.reset_simulation)
+        return response
 
     def _on_pause(self, request: Any, response: Any) -> Any:
         del request
@@ -390,32 +418,101 @@ class GazeboServices:
         response.success, response.status_message = self.set_model_state(request.model_state)
         return response
 
-    def _on_spawn(self, request: Any, response: Any) -> Any:
+    def rebind(self, old_model: mujoco.MjModel, ids: IdMap) -> None:
+        """Carry the reset state onto a recompiled model (a model was spawned or deleted).
+
+        Surviving bodies keep their state at start; a spawned model's is its spawn pose.
+        """
+        old = mujoco.MjData(old_model)
+        mujoco.mj_setState(old_model, old, self._initial, _STATE)
+        new = mujoco.MjData(ids.model)
+        transfer_state(old_model, old, ids, new)
+        self._initial = np.zeros(mujoco.mj_stateSize(ids.model, _STATE))
+        mujoco.mj_getState(ids.model, new, self._initial, _STATE)
+
+    def spawn_model(self, request: Any) -> tuple[bool, str]:
+        """Spawn a URDF or SDF model as a ``gazebo_msgs/srv/SpawnModel`` request says.
+
+        Returns:
+            ``(success, status_message)``.
+        """
+        xml = str(request.model_xml)
         name = str(request.model_name)
-        response.success = False
-        if name in self._models():
-            response.status_message = f"SpawnModel: Failure - model name {name} already exists."
-            return response
-        response.status_message = (
-            f"SpawnModel: visnav spawns robots at start only and cannot add model [{name}] "
-            "to the running simulation. Fix: give it to the simulation at start (the sim "
-            "node's robot parameter, `visnav sim --robot`, or a launch file's "
-            "spawn_model/urdf_spawner node, which visnav folds into the sim node)"
-        )
+        if name and name in self._models():
+            return False, f"SpawnModel: Failure - model name {name} already exists."
+        if not xml.strip().startswith("<"):
+            return False, (
+                "SpawnModel: Failure - model_xml is not URDF or SDF XML text (visnav reads no "
+                "file or database name from it: pass the file's contents)"
+            )
+        if "xmlns:xacro" in xml:
+            return False, (
+                "SpawnModel: Failure - model_xml is Xacro, which Gazebo does not expand either. "
+                "Fix: send the expanded URDF (xacro FILE > model.urdf)"
+            )
+        frame = self.entity(str(request.reference_frame))
+        if frame is None:
+            return False, (
+                f"SpawnModel: Failure - reference frame [{request.reference_frame}] not found "
+                "(a model, model::link, or ''/world for the world)"
+            )
+        rotation, error = _rotation(request.initial_pose.orientation)
+        position = _vector(request.initial_pose.position)
+        if error or not np.all(np.isfinite(position)):
+            what = error or f"position {position.tolist()} is not finite"
+            return False, f"SpawnModel: Failure - initial_pose: {what}"
+        if np.abs(position).max() > MAX_POSITION_M:
+            return False, (
+                f"SpawnModel: Failure - initial_pose position {position.tolist()} is beyond "
+                f"|{MAX_POSITION_M:g}| m"
+            )
+        world_rot = frame.rotation @ rotation
+        world_pos = frame.position + frame.rotation @ position
+        wxyz = np.zeros(4)
+        mujoco.mju_mat2Quat(wxyz, np.ascontiguousarray(world_rot).reshape(9))
+        yaw = float(np.arctan2(world_rot[1, 0], world_rot[0, 0]))
+        try:
+            if is_sdf(xml):
+                xml = sdf_model_to_urdf(xml, name=name or None)
+            spawn = RobotSpawn(
+                source=xml,
+                name=name or None,
+                spawn=(float(world_pos[0]), float(world_pos[1]), float(world_pos[2]), yaw),
+                namespace=str(request.robot_namespace) or "/",
+            )
+            spawned = self._sim.spawn_robot(
+                spawn, quat_wxyz=(float(wxyz[0]), float(wxyz[1]), float(wxyz[2]), float(wxyz[3]))
+            )
+        except VisnavError as exc:
+            if "already exists" in str(exc):
+                return False, f"SpawnModel: Failure - model name {name} already exists."
+            return False, f"SpawnModel: Failure - model [{name}] cannot be spawned: {exc}"
+        return True, f"SpawnModel: Successfully spawned entity [{spawned}]"
+
+    def delete_model(self, name: str) -> tuple[bool, str]:
+        """Delete a spawned or started robot (``gazebo_msgs/srv/DeleteModel``).
+
+        Returns:
+            ``(success, status_message)``.
+        """
+        if name not in self._sim.model_names:
+            if name in self._models():
+                return False, (
+                    f"DeleteModel: model [{name}] is part of the world, which visnav cannot "
+                    "change while it runs"
+                )
+            known = ", ".join(self._models())
+            return False, f"DeleteModel: model [{name}] does not exist (models: {known})"
+        try:
+            self._sim.delete_robot(name)
+        except VisnavError as exc:
+            return False, f"DeleteModel: Failure - model [{name}] cannot be deleted: {exc}"
+        return True, f"DeleteModel: successfully deleted model [{name}]"
+
+    def _on_spawn(self, request: Any, response: Any) -> Any:
+        response.success, response.status_message = self.spawn_model(request)
         return response
 
     def _on_delete(self, request: Any, response: Any) -> Any:
-        name = str(request.model_name)
-        response.success = False
-        if name not in self._models():
-            known = ", ".join(self._models())
-            response.status_message = (
-                f"DeleteModel: model [{name}] does not exist (models: {known})"
-            )
-            return response
-        response.status_message = (
-            f"DeleteModel: visnav cannot remove model [{name}] from the running simulation "
-            "(robots are built into the MuJoCo model at start). Fix: start the simulation "
-            "without it"
-        )
+        response.success, response.status_message = self.delete_model(str(request.model_name))
         return response

@@ -44,6 +44,7 @@ if TYPE_CHECKING:
 
     from visnav.description.gazebo_specs import ImuModelSpec
     from visnav.graph.node import Node
+    from visnav.sim.rebind import IdMap
 
 __all__ = ["ImuModelPlugin", "make_imu_model"]
 
@@ -88,6 +89,15 @@ class ImuModelPlugin(SimPlugin):
         if version != self._wanted[0]:
             self._wanted = (version, self._pub.get_subscription_count() > 0)
         return self._wanted[1]
+
+    def rewind(self, now_ns: int) -> None:
+        """Sim time went back to ``now_ns``: the schedule restarts, no acceleration history."""
+        super().rewind(now_ns)
+        self._last = None
+
+    def rebind(self, ids: IdMap) -> None:
+        """Read the same body of a recompiled model."""
+        self._body.rebind(ids)
 
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Publish the state at ``now_ns`` when due and subscribed."""

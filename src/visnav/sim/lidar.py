@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
     from visnav.description.gazebo_specs import GaussianNoise, RayScan, RaySpec
+    from visnav.sim.rebind import IdMap
 
 __all__ = [
     "ROBOT_VISUAL_GROUP",
@@ -141,17 +142,27 @@ class RayCaster:
         groups[ROBOT_VISUAL_GROUP] = 0
         groups[MESH_PIECE_GROUP] = 0  # a world mesh is hit through its ray geom instead
         self._groups = groups
+        self._see_through_geoms(model)
+        self._dirs = np.zeros((n, 3))
+        self._dist = np.zeros(n)
+        self._geom = np.zeros(n, dtype=np.int32)
+        self._one = np.zeros(1, dtype=np.int32)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Cast in a recompiled model (a spawned model is hit, a deleted one is not)."""
+        self.model = ids.model
+        self.body = ids.body(self.body) if self.body > 0 else self.body
+        self._exclude = self.body if self.body > 0 else -1
+        self._see_through_geoms(ids.model)
+
+    def _see_through_geoms(self, model: mujoco.MjModel) -> None:
         group = np.clip(np.asarray(model.geom_group), 0, mujoco.mjNGROUP - 1)
         self._collides = (
             (np.asarray(model.geom_contype) != 0)
             | (np.asarray(model.geom_conaffinity) != 0)
             | (group == MESH_RAY_GROUP)
         )
-        self._see_through = bool(np.any(~self._collides & (groups[group] != 0)))
-        self._dirs = np.zeros((n, 3))
-        self._dist = np.zeros(n)
-        self._geom = np.zeros(n, dtype=np.int32)
-        self._one = np.zeros(1, dtype=np.int32)
+        self._see_through = bool(np.any(~self._collides & (self._groups[group] != 0)))
 
     def sensor_pose(self, data: mujoco.MjData) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position (3,) and rotation (3x3) of the sensor frame."""

@@ -126,6 +126,7 @@ class RobotBuild:
         quadrotor: the robot's quadrotor plugin, if it flies.
         sim_node: the node that owns the simulation; its parameters are the ROS 1
             parameter-server view ros_control controllers read (``controllers``, ...).
+        start_ns: sim time the robot enters the simulation (a spawned model starts late).
     """
 
     model: mujoco.MjModel
@@ -143,6 +144,7 @@ class RobotBuild:
     joint_states_topic: str = "/joint_states"
     quadrotor: QuadrotorPlugin | None = None
     sim_node: Node | None = None
+    start_ns: int = 0
 
     def frame(self, frame_id: str) -> str:
         """``frame_id`` with the robot's prefix (``world`` and ``map`` stay as they are)."""
@@ -247,6 +249,7 @@ def diff_drive_controller(
         spec,
         base_body=build.handles.bodies[base_link],
         prefix=f"{build.name}/",
+        start_ns=build.start_ns,
         seed=build.seed_of(drive.plugin_name),
     )
     return spec, controller

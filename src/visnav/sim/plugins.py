@@ -70,6 +70,7 @@ if TYPE_CHECKING:
     )
     from visnav.graph.node import Node
     from visnav.sim.camera import CameraSensor
+    from visnav.sim.rebind import IdMap
     from visnav.sim.vehicles.diff_drive import DiffDriveController
     from visnav.tf.robot_state import RobotStateModel
 
@@ -123,6 +124,27 @@ class SimPlugin:
 
     def reset(self, data: mujoco.MjData, now_ns: int) -> None:
         """Gazebo's plugin ``Reset()`` (``/gazebo/reset_world``): the bodies are back at start."""
+
+    def rewind(self, now_ns: int) -> None:
+        """Sim time went back to ``now_ns`` (``/gazebo/reset_simulation``).
+
+        Every :class:`~visnav.sim.sensor_timing.SensorClock` attribute of the plugin
+        restarts at ``now_ns``, and so does any attribute object with a ``rewind(now_ns)``
+        method (a controller); a plugin that keeps other times overrides this.
+        """
+        for value in vars(self).values():
+            if isinstance(value, SensorClock):
+                value.restart(now_ns)
+            elif callable(getattr(value, "rewind", None)) and value is not self:
+                value.rewind(now_ns)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Move onto a recompiled model (a model was spawned or deleted; :mod:`visnav.sim.rebind`).
+
+        A plugin that keeps MuJoCo ids, addresses or the model overrides this and takes
+        the new ones from ``ids``; its own state (schedules, commands, odometry, noise)
+        stays as it was. The default keeps nothing model-specific.
+        """
 
     def close(self) -> None:
         """Destroy the node."""
@@ -225,6 +247,10 @@ class CameraPlugin(SimPlugin):
         """True when any of the camera's topics has a subscriber (checked on graph changes)."""
         return self._outputs()[0]
 
+    def rebind(self, ids: IdMap) -> None:
+        """Render the same camera of a recompiled model (with its new render context)."""
+        self.sensor.rebind(ids)
+
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Measure at ``now_ns`` when due and wanted, and publish."""
         if not self.clock.due(now_ns):
@@ -298,6 +324,10 @@ class ImuPlugin(SimPlugin):
         self._cov_orient = np.diag([orient_var] * 3).reshape(-1)
         topic = spec.topic or f"/{spec.name}/out"
         self._pub = node.create_publisher(Imu, topic, SENSOR_QOS)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Read the same MuJoCo sensors of a recompiled model."""
+        self._adr = [int(a) for a in ids.sensordata(self._adr)]
 
     def after_step(self, data: mujoco.MjData, now_ns: int) -> None:
         """Read the sensor at ``now_ns`` when due and publish."""
@@ -378,6 +408,12 @@ class OdometryPlugin(SimPlugin):
         self._cov = cov
         self._pub = node.create_publisher(Odometry, spec.topic, DEFAULT_QOS)
         self._tf = TransformBroadcaster(node) if spec.publish_tf else None
+
+    def rebind(self, ids: IdMap) -> None:
+        """Track the same bodies of a recompiled model."""
+        self._body.rebind(ids)
+        if self._reference is not None:
+            self._reference.rebind(ids)
 
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Measure at ``now_ns`` when due and publish."""
@@ -487,6 +523,13 @@ class DiffDrivePlugin(SimPlugin):
         del data, now_ns
         self.controller.reset()
 
+    def rebind(self, ids: IdMap) -> None:
+        """Drive the same wheels of a recompiled model (command and odometry kept)."""
+        self.controller.rebind(ids)
+        self._wheels = [(joint, int(ids.qpos([adr])[0])) for joint, adr in self._wheels]
+        if self._joint_states is not None:
+            self._wheel_qpos = ids.qpos(self._wheel_qpos)
+
     def control(self, data: mujoco.MjData, now_ns: int) -> None:
         """Apply the controller for the step at ``now_ns``."""
         sample = self.controller.step(data, now_ns)
@@ -562,6 +605,11 @@ class JointStatePlugin(SimPlugin):
         self._qpos = np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64)
         self._dof = np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64)
         self._pub = node.create_publisher(JointState, spec.topic, DEFAULT_QOS)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Read the same joints of a recompiled model."""
+        self._qpos = ids.qpos(self._qpos)
+        self._dof = ids.dof(self._dof)
 
     def sense(self, data: mujoco.MjData, now_ns: int) -> None:
         """Measure at ``now_ns`` when due and publish."""

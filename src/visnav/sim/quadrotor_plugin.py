@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
     from visnav.description.gazebo_specs import QuadrotorSpec
     from visnav.graph.node import Node
+    from visnav.sim.rebind import IdMap
     from visnav.sim.vehicles.quadrotor import QuadrotorController
 
 __all__ = ["MultiDOFJointTrajectory", "QuadrotorPlugin", "trajectory_point_command"]
@@ -101,6 +102,14 @@ class QuadrotorPlugin(SimPlugin):
             MultiDOFJointTrajectory, spec.trajectory_topic, self._on_trajectory, DEFAULT_QOS
         )
         node.create_subscription(PoseStamped, spec.pose_topic, self._on_pose, DEFAULT_QOS)
+
+    def rewind(self, now_ns: int) -> None:
+        """Sim time went back to ``now_ns``: trajectories are timed from it."""
+        self._now_ns = int(now_ns)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Fly the same body of a recompiled model."""
+        self.controller.rebind(ids)
 
     def set_command(self, command: PositionCommand) -> None:
         """Track ``command`` from the next physics step on (drops queued trajectory points)."""

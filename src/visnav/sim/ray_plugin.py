@@ -66,6 +66,7 @@ if TYPE_CHECKING:
     from visnav.description.gazebo_specs import RaySpec
     from visnav.graph.node import Node
     from visnav.sim.plugin_factories import RobotBuild
+    from visnav.sim.rebind import IdMap
 
 __all__ = ["ChannelFloat32", "PointCloud", "Range", "RayPlugin", "make_ray", "ray_message"]
 
@@ -200,6 +201,10 @@ class RayPlugin(SimPlugin):
         topic = spec.topic or f"/{spec.name}/out"
         self._pub = node.create_publisher(_MESSAGE_TYPES[spec.output], topic, SENSOR_QOS)
         self._wanted = (-1, True)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Cast in a recompiled model."""
+        self.caster.rebind(ids)
 
     def wanted(self) -> bool:
         """True while the topic has a subscriber (checked when the graph changes)."""

@@ -69,6 +69,7 @@ if TYPE_CHECKING:
 
     from visnav.description.urdf import Urdf
     from visnav.sim.plugin_factories import RobotBuild
+    from visnav.sim.rebind import IdMap
 
 __all__ = [
     "CONTROLLER_TYPES",
@@ -313,6 +314,12 @@ class RobotHWSim:
             model, self._dof[self._velocity].tolist(), self._effort_limit[self._velocity].tolist()
         )
 
+    def rebind(self, ids: IdMap) -> None:
+        """The same joints of a recompiled model (commands kept)."""
+        self._qpos = ids.qpos(self._qpos)
+        self._dof = ids.dof(self._dof)
+        self._servo.rebind(ids)
+
     def index(self, joint: str) -> int:
         """The hardware index of ``joint``."""
         return self.names.index(joint)
@@ -492,6 +499,18 @@ class RosControlPlugin(SimPlugin):
         self._last_ns: int | None = None
         if spec.e_stop_topic:
             node.create_subscription(Bool, spec.e_stop_topic, self._on_e_stop, 10)
+
+    def rewind(self, now_ns: int) -> None:
+        """Sim time went back to ``now_ns``: the control period and controllers restart."""
+        self._last_ns = None
+        for controller in self.controllers.values():
+            starting = getattr(controller, "starting", None)
+            if callable(starting):
+                starting(now_ns)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Drive the same joints of a recompiled model (controllers keep their state)."""
+        self.hw.rebind(ids)
 
     def _on_e_stop(self, msg: Bool) -> None:
         self.hw.e_stop = bool(msg.data)

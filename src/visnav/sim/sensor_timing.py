@@ -49,6 +49,10 @@ class SensorClock:
         """Sim time at or after which the next measurement is due."""
         return self._next_ns
 
+    def restart(self, start_ns: int) -> None:
+        """Schedule the next measurement at ``start_ns`` (sim time went back)."""
+        self._next_ns = int(start_ns)
+
     def due(self, now_ns: int) -> bool:
         """Return True (and schedule the next one) if a measurement is due at ``now_ns``."""
         if now_ns < self._next_ns:

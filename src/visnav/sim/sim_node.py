@@ -185,7 +185,7 @@ class SimulatorNode(Node):
             super().destroy_node()
             raise
         self._wall0 = time.perf_counter()
-        self._sim0 = self.sim.now_ns
+        self._sim0 = self.sim.elapsed_ns
         self._pace0 = (self._wall0, self._sim0)  # wall and sim time pacing counts from
         steady = Clock(ClockType.STEADY_TIME)
         self._timer = self.create_timer(self.sim.timestep_ns * 1e-9, self._advance, clock=steady)
@@ -253,7 +253,7 @@ class SimulatorNode(Node):
         return values
 
     def _done(self) -> bool:
-        return self.duration_s > 0 and self.sim.now_ns - self._sim0 >= self.duration_s * 1e9
+        return self.duration_s > 0 and self.sim.elapsed_ns - self._sim0 >= self.duration_s * 1e9
 
     def _advance(self) -> None:
         """Steady-timer callback: advance a batch without spinning (the executor spins).
@@ -274,14 +274,17 @@ class SimulatorNode(Node):
             _LOG.info("%s: %s", self.get_fully_qualified_name(), sim.stats.summary())
             return
         if sim.paused:  # /gazebo/pause_physics: pace from the unpause on, no catching up
-            self._pace0 = (time.perf_counter(), sim.now_ns)
+            self._pace0 = (time.perf_counter(), sim.elapsed_ns)
             return
         if sim.realtime:
             wall0, sim0 = self._pace0
             wall = time.perf_counter() - wall0
             target = sim0 + round(wall * sim.real_time_factor * 1e9)
-            ahead = min(target - sim.now_ns, round(_MAX_CATCH_UP_S * 1e9))
+            ahead = min(target - sim.elapsed_ns, round(_MAX_CATCH_UP_S * 1e9))
             steps = max(0, ahead // sim.timestep_ns)
+            if self.duration_s > 0:  # a catch-up batch stops at the end, not past it
+                left = round(self.duration_s * 1e9) - (sim.elapsed_ns - self._sim0)
+                steps = min(steps, max(0, -(-left // sim.timestep_ns)))
             if steps:
                 sim.step(steps, spin=False)
             return
@@ -306,7 +309,7 @@ class SimulatorNode(Node):
             return False
         left = slice_s
         if self.duration_s > 0:
-            left = min(left, self.duration_s - (self.sim.now_ns - self._sim0) * 1e-9)
+            left = min(left, self.duration_s - (self.sim.elapsed_ns - self._sim0) * 1e-9)
         self.sim.run(max(left, 0.0), until=until)
         return not self._done() and self.context.ok
 
@@ -317,7 +320,7 @@ class SimulatorNode(Node):
         returns the timing of the run.
         """
         self._timer.cancel()
-        duration = self.duration_s - (self.sim.now_ns - self._sim0) * 1e-9
+        duration = self.duration_s - (self.sim.elapsed_ns - self._sim0) * 1e-9
         try:
             return self.sim.run(duration if self.duration_s > 0 else None)
         except KeyboardInterrupt:

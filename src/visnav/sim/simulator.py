@@ -49,12 +49,10 @@ import logging
 import math
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import mujoco
-import numpy as np
 
 from visnav.description.robot import RobotDescription
 from visnav.description.robots import resolve_robot
@@ -65,27 +63,31 @@ from visnav.graph.node import Node
 from visnav.graph.qos import QoSProfile
 from visnav.msgs.time import ns_to_time
 from visnav.msgs.types import Clock
-from visnav.sim.camera import RenderContext, render_layout
-from visnav.sim.contact_sensor import ContactSensor
+from visnav.sim.camera import RenderContext
 from visnav.sim.errors import SimulatorError
 from visnav.sim.gazebo_services import GazeboServices
 from visnav.sim.guards import InstabilityMonitor, check_spawn_pose, route_mujoco_warnings
 from visnav.sim.model_states import model_states_publisher
 from visnav.sim.plugin_factories import (
-    RobotBuild,
-    build_plugins,
     node_name,
-    publishes,
-    push_namespace,
 )
 from visnav.sim.plugins import CameraPlugin, SimPlugin
-from visnav.sim.quadrotor_plugin import QuadrotorPlugin
-from visnav.sim.robot import RobotHandles, add_robot_to_spec
+from visnav.sim.rebind import IdMap, transfer_state
+from visnav.sim.robot import RobotHandles
 from visnav.sim.sensor_timing import SensorClock
+from visnav.sim.sim_robots import (
+    BuildContext,
+    Placement,
+    RobotSpawn,
+    SimRobot,
+    build_robot,
+    compose_spec,
+    default_spawn,
+    place_robots,
+    render_context_for,
+    rest_on_ground,
+)
 from visnav.sim.vehicles.quadrotor import PositionCommand
-from visnav.sim.world_spec import build_world_spec
-from visnav.tf.robot_state import RobotStateModel
-from visnav.tf.robot_state_node import RobotStatePublisher
 
 __all__ = [
     "RobotSpawn",
@@ -98,37 +100,6 @@ __all__ = [
 _CLOCK_QOS = QoSProfile(depth=1)
 _MAX_BACKLOG_NS = 100_000_000  # realtime: wall-clock lag dropped instead of caught up
 _LOG = logging.getLogger("visnav.sim")
-
-
-@dataclass(frozen=True, kw_only=True)
-class RobotSpawn:
-    """One robot to put into the world.
-
-    Attributes:
-        source: a built-in name (``car``, ``quadrotor``), a URDF / Xacro file, URDF
-            XML text, or a loaded :class:`~visnav.sim.robot.RobotDescription`.
-        args: Xacro ``name:=value`` arguments.
-        packages: package name -> directory for ``package://`` / ``$(find pkg)``.
-        name: the robot's MuJoCo name prefix (``<name>/``); default the URDF
-            ``<robot name>``, made unique.
-        spawn: ``(x, y, z, yaw)`` of the root link in the world (m, rad); default
-            the world's ``spawn`` ([x, y, yaw]) or ``start`` metadata (facing ``goal``),
-            else the origin, with a free-floating robot resting on the ground.
-        namespace: pushed onto every topic of the robot (``/r1`` makes
-            ``/camera/image_raw`` ``/r1/camera/image_raw``), like spawning a Gazebo
-            robot with ``-robot_namespace``; the robot's nodes live in it.
-        frame_prefix: prepended to every TF frame id of the robot (``r1/`` makes
-            ``base_link`` ``r1/base_link``), as robot_state_publisher's
-            ``frame_prefix``; ``world`` and ``map`` stay unprefixed.
-    """
-
-    source: str | os.PathLike[str] | RobotDescription = "car"
-    args: Mapping[str, str] = field(default_factory=dict)
-    packages: Mapping[str, Path | str] | None = None
-    name: str | None = None
-    spawn: tuple[float, float, float, float] | None = None
-    namespace: str = "/"
-    frame_prefix: str = ""
 
 
 @dataclass(frozen=True)
@@ -166,53 +137,6 @@ class SimStats:
             f"factor {self.real_time_factor:.2f} ({self.steps} steps, {self.frames} camera "
             f"frames, rendering {100.0 * self.render_share:.0f}% of wall time)"
         )
-
-
-@dataclass
-class SimRobot:
-    """One robot in the running simulation.
-
-    Attributes:
-        name: its name (MuJoCo prefix without the slash).
-        description: the loaded robot.
-        handles: its MuJoCo element names.
-        namespace: its topic namespace.
-        frame_prefix: its TF frame prefix.
-        plugins: its sensor and plugin runtimes.
-        robot_state: its robot_state_publisher.
-        quadrotor: its quadrotor plugin, if it flies.
-    """
-
-    name: str
-    description: RobotDescription
-    handles: RobotHandles
-    namespace: str
-    frame_prefix: str
-    plugins: list[SimPlugin] = field(default_factory=list)
-    robot_state: RobotStatePublisher | None = None
-    quadrotor: QuadrotorPlugin | None = None
-
-
-def _namespace(ns: str) -> str:
-    stripped = ns.strip("/")
-    return "/" + stripped if stripped else "/"
-
-
-def _default_spawn(world: WorldDescription) -> tuple[float, float, float]:
-    meta = world.metadata
-    spawn = meta.get("spawn")
-    if isinstance(spawn, (list, tuple)) and len(spawn) >= 2:
-        yaw = float(spawn[2]) if len(spawn) >= 3 else 0.0
-        return float(spawn[0]), float(spawn[1]), yaw
-    start = meta.get("start")
-    if isinstance(start, (list, tuple)) and len(start) >= 2:
-        x, y = float(start[0]), float(start[1])
-        goal = meta.get("goal")
-        yaw = 0.0
-        if isinstance(goal, (list, tuple)) and len(goal) >= 2:
-            yaw = math.atan2(float(goal[1]) - y, float(goal[0]) - x)
-        return x, y, yaw
-    return 0.0, 0.0, 0.0
 
 
 class Simulator:
@@ -266,9 +190,9 @@ class Simulator:
         self.world = world if isinstance(world, WorldDescription) else load_world(world)
         spawns = [r if isinstance(r, RobotSpawn) else RobotSpawn(source=r) for r in robots]
         route_mujoco_warnings()  # not to stdout and MUJOCO_LOG.TXT in the cwd
-        spec = build_world_spec(self.world)
-        spec.visual.quality.offsamples = int(msaa_samples)
-        placed = self._add_robots(spec, spawns)
+        self._msaa = int(msaa_samples)
+        self._placements = place_robots(self.world, spawns)
+        spec, robot_handles = compose_spec(self.world, self._placements, msaa_samples=self._msaa)
         try:
             self.model = spec.compile()
         except Exception as exc:  # MuJoCo raises ValueError and others
@@ -276,14 +200,16 @@ class Simulator:
             raise SimulatorError(msg) from exc
         self.data = mujoco.MjData(self.model)
         self._stability = InstabilityMonitor(self.data)
-        self._rest_on_ground(placed)
+        placed = list(zip(self._placements, robot_handles, strict=True))
+        rest_on_ground(self.model, self.data, self.world, [(h, p.spawn) for p, h in placed])
         mujoco.mj_forward(self.model, self.data)
         self._dt_ns = round(float(self.model.opt.timestep) * 1e9)
         self._split = self.model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4
         self._now_ns = 0
+        self._elapsed_ns = 0  # simulated time stepped, never rewound (reset_simulation)
         self._steps = 0
         self._wall_ns = 0
-        self._render_ctx: RenderContext | None = None
+        self._render_ctx = render_context_for(self.model, self._placements)
         self._cameras: list[CameraPlugin] = []
         self._clock = SensorClock(clock_rate)
         self._pace_ref = (0, 0)
@@ -292,130 +218,170 @@ class Simulator:
         self._in_step = False  # callbacks run inside a step (lock-step spin_some)
         self._edits: list[Callable[[], None]] = []  # state edits deferred to the step's end
         self.robots: list[SimRobot] = []
-        cameras = [c for desc, *_ in placed for c in desc.gazebo.cameras if publishes(c)]
-        if cameras:
-            layouts = [render_layout(c, with_maps=False) for c in cameras]
-            self._render_ctx = RenderContext(
-                self.model,
-                max_width=max(layout.width for layout in layouts),
-                max_height=max(layout.height for layout in layouts),
-            )
         self._contact_rate = float(contact_rate)  # > 0: each robot's bumper_states topic
         self._owns_node = node is None
         self._node = node if node is not None else Node("sim", context=context)
         self._clock_pub = self._node.create_publisher(Clock, "/clock", _CLOCK_QOS)
         try:
-            for desc, handles, spawn, name in placed:
-                self.robots.append(self._make_robot(desc, handles, spawn, name))
+            where = self._build_context(self.model, self._render_ctx)
+            for p, handles in placed:
+                robot = build_robot(where, p.description, handles, p.spawn, p.name)
+                self.robots.append(robot)
+                self._cameras.extend(robot.cameras)
         except Exception:
             self.close()
             raise
         self.model_states = model_states_publisher(self)  # /gazebo/model_states, link_states
+        self._hooks()
+        self.gazebo_services = GazeboServices(self)  # /gazebo/* services on the node
+
+    def _build_context(self, model: mujoco.MjModel, render: RenderContext | None) -> BuildContext:
+        return BuildContext(
+            model=model,
+            context=self.context,
+            seed=self.seed,
+            sim_node=self._node,
+            now_ns=self._now_ns,
+            contact_rate=self._contact_rate,
+            render_context=render,
+        )
+
+    def _hooks(self) -> None:
+        """The per-step call lists, from the robots' plugins (again after a model change)."""
         plugins = [p for r in self.robots for p in r.plugins] + [self.model_states]
         self._sense = [p.sense for p in plugins if type(p).sense is not SimPlugin.sense]
         self._control = [p.control for p in plugins if type(p).control is not SimPlugin.control]
         self._after = [
             p.after_step for p in plugins if type(p).after_step is not SimPlugin.after_step
         ]
-        self.gazebo_services = GazeboServices(self)  # /gazebo/* services on the node
 
     # ------------------------------------------------------------------ building
 
-    def _add_robots(
-        self, spec: mujoco.MjSpec, spawns: Sequence[RobotSpawn]
-    ) -> list[tuple[RobotDescription, RobotHandles, RobotSpawn, str]]:
-        placed = []
-        used: set[str] = set()
-        default_xy_yaw = _default_spawn(self.world)
-        for spawn in spawns:
-            desc = resolve_robot(spawn.source, args=spawn.args, packages=spawn.packages)
-            base = node_name(spawn.name or desc.name)
-            name, k = base, 2
-            while name in used:
-                name, k = f"{base}_{k}", k + 1
-            used.add(name)
-            if spawn.spawn is None:
-                x, y, yaw = default_xy_yaw
-                pose: tuple[float, float, float, float] = (x, y, 0.0, yaw)
-            else:
-                pose = check_spawn_pose(spawn.spawn, self.world, robot=name)
-            handles = add_robot_to_spec(spec, desc, prefix=f"{name}/", spawn_xyz_yaw=pose)
-            placed.append((desc, handles, spawn, name))
-        return placed
+    # ------------------------------------------------------------------ spawn / delete
 
-    def _rest_on_ground(
-        self, placed: Sequence[tuple[RobotDescription, RobotHandles, RobotSpawn, str]]
-    ) -> None:
-        """Lift free-floating robots without an explicit spawn height onto the ground."""
-        model, data = self.model, self.data
-        mujoco.mj_kinematics(model, data)
-        ground = self.world.ground.z if self.world.ground is not None else 0.0
-        for _, handles, spawn, _ in placed:
-            if spawn.spawn is not None or handles.free_joint is None:
-                continue
-            root = model.body(handles.root_body).id
-            lowest = math.inf
-            for g in range(model.ngeom):
-                body = int(model.geom_bodyid[g])
-                if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
-                    continue
-                if body != root and not _is_descendant(model, body, root):
-                    continue
-                centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
-                signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
-                corners = centre + signs * half
-                world = data.geom_xpos[g] + corners @ data.geom_xmat[g].reshape(3, 3).T
-                lowest = min(lowest, float(world[:, 2].min()))
-            if math.isfinite(lowest):
-                adr = model.joint(handles.free_joint).qposadr[0]
-                data.qpos[adr + 2] += ground - lowest
+    @property
+    def model_names(self) -> list[str]:
+        """The robots' names, including a spawn or delete not applied yet (end of step)."""
+        return [p.name for p in self._placements]
 
-    def _make_robot(
-        self, desc: RobotDescription, handles: RobotHandles, spawn: RobotSpawn, name: str
-    ) -> SimRobot:
-        ns = _namespace(spawn.namespace)
-        prefix = spawn.frame_prefix
-        robot = SimRobot(name, desc, handles, ns, prefix)
-        state_model = RobotStateModel(desc.urdf, frame_prefix=prefix)
-        build = RobotBuild(
-            model=self.model,
-            context=self.context,
-            name=name,
-            description=desc,
-            handles=handles,
-            namespace=ns,
-            frame_prefix=prefix,
-            seed=self.seed,
-            state_model=state_model,
-            render_context=self._render_ctx,
-            joint_states_topic=push_namespace(ns, "/joint_states") or "/joint_states",
-            sim_node=self._node,
-        )
+    def spawn_robot(
+        self,
+        spawn: RobotSpawn,
+        *,
+        quat_wxyz: tuple[float, float, float, float] | None = None,
+    ) -> str:
+        """Add a robot to the running simulation (gazebo_ros' ``SpawnModel``).
+
+        The robot's MuJoCo model is composed with the world and the other robots and
+        compiled, and its plugins are built, before this returns; the simulation moves
+        onto the new model between two steps (:meth:`edit`). Every other body keeps its
+        state; the new robot starts at its spawn pose, at rest.
+
+        Args:
+            spawn: the robot; ``spawn.spawn`` is ``(x, y, z, yaw)`` (default: the world's
+                spawn point; no resting on the ground: it falls from where it is put).
+            quat_wxyz: a full orientation of the root link, overriding the yaw.
+
+        Returns:
+            The robot's name.
+
+        Raises:
+            SimulatorError: the name is taken, or MuJoCo or a plugin rejects the robot.
+            RobotDescriptionError: the description cannot be loaded.
+        """
+        self._check_open()
+        desc = resolve_robot(spawn.source, args=spawn.args, packages=spawn.packages)
+        name = node_name(spawn.name or desc.name)
+        if name in self.model_names:
+            msg = f"model name {name} already exists"
+            raise SimulatorError(msg)
+        if spawn.spawn is None:
+            x, y, yaw = default_spawn(self.world)
+            pose: tuple[float, float, float, float] = (x, y, 0.0, yaw)
+        else:
+            pose = check_spawn_pose(spawn.spawn, self.world, robot=name)
+        placement = Placement(desc, spawn, name, pose, quat_wxyz)
+        placements = [*self._placements, placement]
+        model, handles = self._compile(placements)
+        render = render_context_for(model, placements)
         try:
-            robot.plugins.extend(build_plugins(build))
-        finally:
-            self._cameras.extend(build.cameras)
-            robot.quadrotor = build.quadrotor
-        if self._contact_rate > 0:
-            root = self.model.body(handles.root_body).id
-            sensor = ContactSensor(build.node("bumper"), self.model, root, self._contact_rate)
-            robot.plugins.append(sensor)
-        missing = [j for j in state_model.moving_joints if j not in build.covered_joints]
-        if missing:
-            _LOG.warning(
-                "robot %r: moving joints %s are in no libgazebo_ros_joint_state_publisher.so "
-                "plugin, so robot_state_publisher puts their child frames on no /tf",
-                name,
-                missing,
-            )
-        robot.robot_state = RobotStatePublisher(
-            build.node("robot_state_publisher"),
-            state_model,
-            desc.xml,
-            joint_states_topic=build.joint_states_topic,
-            stamp_ns=self._now_ns,
-        )
-        return robot
+            robot = build_robot(self._build_context(model, render), desc, handles[-1], spawn, name)
+        except Exception:
+            if render is not None:
+                render.close()
+            raise
+        self._placements = placements
+        self.edit(lambda: self._adopt(model, render, placements, add=robot))
+        return name
+
+    def delete_robot(self, name: str) -> None:
+        """Remove a robot, its plugins and their topics (gazebo_ros' ``DeleteModel``).
+
+        Raises:
+            SimulatorError: no such robot, or the remaining model does not compile.
+        """
+        self._check_open()
+        if name not in self.model_names:
+            msg = f"no robot {name!r} in the simulation (robots: {self.model_names})"
+            raise SimulatorError(msg)
+        placements = [p for p in self._placements if p.name != name]
+        model, _ = self._compile(placements)
+        render = render_context_for(model, placements)
+        self._placements = placements
+        self.edit(lambda: self._adopt(model, render, placements, remove=name))
+
+    def _compile(
+        self, placements: Sequence[Placement]
+    ) -> tuple[mujoco.MjModel, list[RobotHandles]]:
+        spec, handles = compose_spec(self.world, placements, msaa_samples=self._msaa)
+        try:
+            model = spec.compile()
+        except Exception as exc:  # MuJoCo raises ValueError and others
+            names = [p.name for p in placements]
+            msg = f"MuJoCo cannot compile world {self.world.name!r} with robots {names}: {exc}"
+            raise SimulatorError(msg) from exc
+        if model.opt.timestep != self.model.opt.timestep:  # the world's, never a robot's
+            msg = "the recompiled model has another physics timestep"
+            raise SimulatorError(msg)
+        return model, handles
+
+    def _adopt(
+        self,
+        model: mujoco.MjModel,
+        render: RenderContext | None,
+        placements: Sequence[Placement],
+        *,
+        add: SimRobot | None = None,
+        remove: str | None = None,
+    ) -> None:
+        """Move the running simulation onto ``model`` (between steps)."""
+        del placements
+        if remove is not None:
+            for robot in [r for r in self.robots if r.name == remove]:
+                for plugin in robot.plugins:
+                    plugin.close()
+                if robot.robot_state is not None:
+                    robot.robot_state.close()
+                self.robots.remove(robot)
+                self._cameras = [c for c in self._cameras if c not in robot.cameras]
+        ids = IdMap(self.model, model, render_context=render)
+        data = mujoco.MjData(model)
+        transfer_state(self.model, self.data, ids, data)
+        old_model, old_render = self.model, self._render_ctx
+        for robot in self.robots:
+            for plugin in robot.plugins:
+                plugin.rebind(ids)
+        self.model, self.data, self._render_ctx = model, data, render
+        if add is not None:
+            self.robots.append(add)
+            self._cameras.extend(add.cameras)
+        self._stability = InstabilityMonitor(self.data)
+        self.model_states.close()
+        self.model_states = model_states_publisher(self)
+        self._hooks()
+        self.gazebo_services.rebind(old_model, ids)
+        if old_render is not None and old_render is not render:
+            old_render.close()
 
     # ------------------------------------------------------------------ running
 
@@ -428,6 +394,30 @@ class Simulator:
     def now_ns(self) -> int:
         """Sim time of the current state (ns)."""
         return self._now_ns
+
+    @property
+    def elapsed_ns(self) -> int:
+        """Simulated time stepped since the start (ns).
+
+        Unlike :attr:`now_ns` it never goes back (``/gazebo/reset_simulation`` rewinds
+        sim time to 0).
+        """
+        return self._elapsed_ns
+
+    def rewind(self) -> None:
+        """Sim time back to 0, as Gazebo's ``reset_simulation`` (call between steps).
+
+        ``/clock`` starts again from 0; every sensor's and plugin's schedule restarts
+        (:meth:`~visnav.sim.plugins.SimPlugin.rewind`). The bodies are not moved: reset
+        them with the gazebo services' ``reset_world``.
+        """
+        self._now_ns = 0
+        self.data.time = 0.0
+        self._clock = SensorClock(self._clock.rate_hz)
+        for robot in self.robots:
+            for plugin in robot.plugins:
+                plugin.rewind(0)
+        self.model_states.rewind(0)
 
     @property
     def sim_time_s(self) -> float:
@@ -443,7 +433,7 @@ class Simulator:
     def stats(self) -> SimStats:
         """Timing since the simulator was created."""
         return SimStats(
-            sim_time_s=self._now_ns * 1e-9,
+            sim_time_s=self._elapsed_ns * 1e-9,
             wall_time_s=self._wall_ns * 1e-9,
             steps=self._steps,
             render_time_s=sum(c.render_ns for c in self._cameras) * 1e-9,
@@ -506,6 +496,7 @@ class Simulator:
         for after in self._after:
             after(data, now)
         self._now_ns = now + self._dt_ns
+        self._elapsed_ns += self._dt_ns
         self._steps += 1
         while self._edits:
             self._edits.pop(0)()
@@ -543,14 +534,14 @@ class Simulator:
         if duration_s is not None and not (math.isfinite(duration_s) and duration_s >= 0):
             msg = f"duration is {duration_s}: expected a finite number of seconds >= 0"
             raise SimulatorError(msg)
-        end_ns = None if duration_s is None else self._now_ns + round(duration_s * 1e9)
+        end_ns = None if duration_s is None else self._elapsed_ns + round(duration_s * 1e9)
         before = self.stats
         wall0 = time.perf_counter_ns()
-        self._pace_ref = (wall0, self._now_ns)
+        self._pace_ref = (wall0, self._elapsed_ns)
         ctx = self.context
         try:
             while ctx.ok:
-                if end_ns is not None and self._now_ns >= end_ns:
+                if end_ns is not None and self._elapsed_ns >= end_ns:
                     break
                 if until is not None and until():
                     break
@@ -578,10 +569,10 @@ class Simulator:
         than real time) is dropped rather than caught up in a burst, as Gazebo does.
         """
         wall0, sim0 = self._pace_ref
-        target = wall0 + (self._now_ns - sim0) / self.real_time_factor
+        target = wall0 + (self._elapsed_ns - sim0) / self.real_time_factor
         now = time.perf_counter_ns()
         if target < now - _MAX_BACKLOG_NS:
-            self._pace_ref = (now, self._now_ns)
+            self._pace_ref = (now, self._elapsed_ns)
             return
         while self.context.ok:
             remaining = (target - time.perf_counter_ns()) * 1e-9
@@ -605,7 +596,7 @@ class Simulator:
         """Resume stepping; realtime pacing restarts from now (no catching up)."""
         if self._paused:
             self._paused = False
-            self._pace_ref = (time.perf_counter_ns(), self._now_ns)
+            self._pace_ref = (time.perf_counter_ns(), self._elapsed_ns)
 
     def edit(self, change: Callable[[], None]) -> None:
         """Change the physics state now, or at the end of the step a callback runs in.
@@ -652,11 +643,3 @@ class Simulator:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _is_descendant(model: mujoco.MjModel, body: int, root: int) -> bool:
-    while body > 0:
-        body = int(model.body_parentid[body])
-        if body == root:
-            return True
-    return False

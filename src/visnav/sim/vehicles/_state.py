@@ -17,6 +17,8 @@ if TYPE_CHECKING:
     import mujoco
     import numpy.typing as npt
 
+    from visnav.sim.rebind import IdMap
+
 __all__ = ["BodyReader", "BodyState"]
 
 
@@ -42,6 +44,10 @@ class BodyReader:
         import mujoco  # noqa: PLC0415
 
         self._mujoco = mujoco
+        self._bind(model, body)
+
+    def _bind(self, model: mujoco.MjModel, body: int) -> None:
+        mujoco = self._mujoco
         self.model = model
         self.body = body
         jnt = int(model.body_jntadr[body]) if model.body_jntnum[body] > 0 else -1
@@ -52,6 +58,10 @@ class BodyReader:
         )
         self._qpos = int(model.jnt_qposadr[jnt]) if self.free else -1
         self._dof = int(model.jnt_dofadr[jnt]) if self.free else -1
+
+    def rebind(self, ids: IdMap) -> None:
+        """Read the same body of a recompiled model (:mod:`visnav.sim.rebind`)."""
+        self._bind(ids.model, ids.body(self.body))
 
     def read(self, data: mujoco.MjData) -> BodyState:
         """The body's current state."""

@@ -82,6 +82,7 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     from visnav.msgs import Odometry, TransformStamped
+    from visnav.sim.rebind import IdMap
 
 __all__ = [
     "DiffDriveConfig",
@@ -459,6 +460,20 @@ class DiffDriveController:
             model=WheelEncoderModel(noise, seed=seed) if noise.active else None,
         )
         self.odometry: DiffDriveOdometry | None = None
+
+    def rebind(self, ids: IdMap) -> None:
+        """Drive the same joints of a recompiled model; command and odometry are kept."""
+        self.model = ids.model
+        self._qpos = ids.qpos(self._qpos)
+        self._dof = ids.dof(self._dof)
+        self._reader.rebind(ids)
+        self._servo.rebind(ids)
+
+    def rewind(self, now_ns: int) -> None:
+        """Sim time went back to ``now_ns``: the update schedule restarts from it."""
+        self._clock.restart(int(now_ns) + self._period_ns)
+        self._last_update_ns = int(now_ns)
+        self._last_encoder_ns = None
 
     @property
     def target(self) -> tuple[float, float]:

@@ -47,6 +47,8 @@ if TYPE_CHECKING:
     import mujoco
     import numpy.typing as npt
 
+    from visnav.sim.rebind import IdMap
+
 __all__ = [
     "ControlOutput",
     "PositionCommand",
@@ -292,6 +294,12 @@ class QuadrotorController:
         self._rng = np.random.default_rng(seed)
         self._applied = np.zeros(4)  # thrust, moments after the motor lag
         self.last_output: ControlOutput | None = None
+
+    def rebind(self, ids: IdMap) -> None:
+        """Fly the same body of a recompiled model; command and motor state are kept."""
+        self.model = ids.model
+        self.body = ids.body(self.body)
+        self._reader.rebind(ids)
 
     def _composite_inertia(self) -> tuple[float, npt.NDArray[np.float64]]:
         mujoco = self._mujoco

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import mujoco
 
+    from visnav.sim.rebind import IdMap
+
 __all__ = ["GAIN", "INTEGRAL_TIME", "VelocityServo"]
 
 GAIN = 0.9
@@ -46,6 +48,10 @@ class VelocityServo:
         self._integral_step = timestep / INTEGRAL_TIME
         self._limits = [float(limit) for limit in limits]
         self.integral = [0.0] * len(self.dofs)
+
+    def rebind(self, ids: IdMap) -> None:
+        """Drive the same joints of a recompiled model (integrals kept)."""
+        self.dofs = [int(d) for d in ids.dof(self.dofs)]
 
     def reset(self) -> None:
         """Forget the integral (a new command history)."""
