@@ -137,6 +137,12 @@ def test_malformed_replies_fail_the_client_future_cleanly(domain: int) -> None:
             else:
                 assert isinstance(future.result(), Trigger.Response)
                 assert not error
+            # the blocking call() reads the reply from a channel: the same outcomes, raised
+            if exc is not None:
+                with pytest.raises(ServiceError, match="/fz/trigger"):
+                    client.call(Trigger.Request(), timeout_sec=5.0)
+            else:
+                assert isinstance(client.call(Trigger.Request(), timeout_sec=5.0), Trigger.Response)
 
         try:
             check()

@@ -8,15 +8,23 @@
 * **ROS 1 -> visnav:** a service that a visnav *client* calls, that no visnav server
   provides and that the ROS 1 master lists gets a visnav server on the bridge node; its
   callback calls the ROS 1 provider (``lookupService`` then TCPROS) and returns its
-  response, or fails with the ROS 1 error text. The callback runs in the bridge's
-  executor: a slow ROS 1 service holds the bridge for up to ``timeout_s``.
+  response, or fails with the ROS 1 error text. The ROS 1 call runs on a worker thread
+  (at most :data:`MAX_CONCURRENT_CALLS` at once, :data:`MAX_PENDING_CALLS` waiting or
+  running; more are refused with an error at once): the callback returns a deferred
+  response (a :class:`~visnav.graph.future.Future`), so a ROS 1 service that takes
+  seconds holds neither the bridge's executor (its topics, other services and scans go
+  on) nor other calls.
 
 The bridge never re-exports what it serves itself, so a service does not loop.
 """
 
 from __future__ import annotations
 
+import concurrent.futures
+import functools
 import logging
+import threading
+from collections.abc import Callable
 from typing import Any
 
 from visnav.bridge.errors import BridgeError, UnconvertibleTypeError
@@ -25,11 +33,92 @@ from visnav.bridge.srvmap import ROS2_ONLY_PACKAGES, Ros1ServiceType, decode_par
 from visnav.bridge.srvmap import ros1_service_type as _service_type
 from visnav.bridge.tcpros_service import call_service
 from visnav.graph import Node
+from visnav.graph.future import Future
 from visnav.graph.service import Client, Service
 
-__all__ = ["ServiceBridge"]
+__all__ = ["MAX_CONCURRENT_CALLS", "MAX_PENDING_CALLS", "CallPool", "ServiceBridge"]
 
 _log = logging.getLogger("visnav.bridge")
+
+MAX_CONCURRENT_CALLS = 8
+"""ROS 1 service calls the bridge makes at once (each on a worker thread)."""
+MAX_PENDING_CALLS = 64
+"""ROS 1 service calls running or waiting for a worker; further ones fail at once."""
+
+
+class CallPool:
+    """Runs blocking calls on a few worker threads and completes visnav futures with them.
+
+    Args:
+        workers: calls run at once.
+        max_pending: calls running or waiting; :meth:`submit` fails the future of any
+            further one at once (:class:`BridgeError`) rather than queueing without bound.
+    """
+
+    def __init__(
+        self, *, workers: int = MAX_CONCURRENT_CALLS, max_pending: int = MAX_PENDING_CALLS
+    ) -> None:
+        self.workers = workers
+        self.max_pending = max_pending
+        self._pool = concurrent.futures.ThreadPoolExecutor(
+            max_workers=workers, thread_name_prefix="bridge-service"
+        )
+        self._lock = threading.Lock()
+        self._pending: set[Future[Any]] = set()
+        self._closed = False
+
+    @property
+    def pending(self) -> int:
+        """Calls running or waiting for a worker."""
+        with self._lock:
+            return len(self._pending)
+
+    def submit(self, call: Callable[[], Any], *, what: str) -> Future[Any]:
+        """Run ``call()`` on a worker; the returned future completes with its outcome."""
+        future: Future[Any] = Future()
+        with self._lock:
+            if self._closed:
+                refused = f"{what}: the bridge is shutting down"
+            elif len(self._pending) >= self.max_pending:
+                refused = (
+                    f"{what}: the bridge already has {len(self._pending)} calls to ROS 1 "
+                    f"services in flight (at most {self.max_pending}); retry later"
+                )
+            else:
+                refused = ""
+                self._pending.add(future)
+        if refused:
+            future.set_exception(BridgeError(refused))
+            return future
+        try:
+            self._pool.submit(self._run, future, call)
+        except RuntimeError:  # closed between the check and here
+            with self._lock:
+                self._pending.discard(future)
+            future.set_exception(BridgeError(f"{what}: the bridge is shutting down"))
+        return future
+
+    def _run(self, future: Future[Any], call: Callable[[], Any]) -> None:
+        try:
+            result = call()
+        except Exception as exc:  # noqa: BLE001 - handed to the caller
+            future.set_exception(exc)
+        else:
+            future.set_result(result)
+        finally:
+            with self._lock:
+                self._pending.discard(future)
+
+    def close(self) -> None:
+        """Fail the calls still waiting or running; stop the workers (without waiting)."""
+        with self._lock:
+            self._closed = True
+            pending, self._pending = list(self._pending), set()
+        for future in pending:
+            future.set_exception(
+                BridgeError("the bridge stopped before the ROS 1 service answered")
+            )
+        self._pool.shutdown(wait=False, cancel_futures=True)
 
 
 class ServiceBridge:
@@ -53,6 +142,8 @@ class ServiceBridge:
         self._out: dict[str, Client[Any, Any]] = {}
         self._in: dict[str, Service[Any, Any]] = {}
         self._refused: set[tuple[str, str]] = set()
+        self.calls = CallPool()
+        """Where calls to ROS 1 services run (off the executor)."""
 
     def out_services(self) -> list[str]:
         """Services bridged visnav -> ROS 1."""
@@ -152,20 +243,21 @@ class ServiceBridge:
             self.node.get_logger().info(f"ROS 1 -> visnav: service {name} [{stype.ros1_name}]")
 
     def _proxy(self, name: str, stype: Ros1ServiceType) -> Any:
-        def proxy(request: Any, _response: Any) -> Any:
-            """A visnav call (in the executor): find the ROS 1 provider, call it."""
-            uri = self.ros1.master.lookup_service(name)
-            data = call_service(
-                uri,
-                name,
-                stype,
-                encode_part(request, stype.request),
-                caller_id=self.ros1.name,
-                timeout_s=self.timeout_s,
-            )
-            return decode_part(data, stype.response)
+        def proxy(request: Any, _response: Any) -> Future[Any]:
+            """A visnav call (in the executor): hand the ROS 1 call to a worker thread."""
+            data = encode_part(request, stype.request)
+            call = functools.partial(self._call_ros1, name, stype, data)
+            return self.calls.submit(call, what=f"ROS 1 service {name}")
 
         return proxy
+
+    def _call_ros1(self, name: str, stype: Ros1ServiceType, data: bytes) -> Any:
+        """On a worker: find the ROS 1 provider, call it, decode its response."""
+        uri = self.ros1.master.lookup_service(name)
+        reply = call_service(
+            uri, name, stype, data, caller_id=self.ros1.name, timeout_s=self.timeout_s
+        )
+        return decode_part(reply, stype.response)
 
     def _drop_in(self, name: str) -> None:
         service = self._in.pop(name)
@@ -178,3 +270,4 @@ class ServiceBridge:
             self._drop_out(name)
         for name in list(self._in):
             self._drop_in(name)
+        self.calls.close()

@@ -24,9 +24,11 @@ to the fault boundary (logged with node, service and type; the node keeps runnin
 A client's :class:`~visnav.graph.future.Future` completes on the transport's thread,
 so :meth:`Client.call` works from any thread that is not running a callback of the
 client's own executor (there it would wait for itself: refused with an error); the
-future's done callbacks run in the executor. A server that goes away mid-call ends
-the Zenoh query without a reply: the future fails with "no response" at once, or at
-the call's timeout at the latest.
+future's done callbacks run in the executor. A blocking :meth:`Client.call` to another
+process needs no future: the reply waits in a Zenoh channel that the calling thread
+reads and decodes itself, so no Python code runs on Zenoh's thread for it. A server
+that goes away mid-call ends the Zenoh query without a reply: the future (or call) fails
+with "no response" at once, or at the call's timeout at the latest.
 
 Actions build on this module: an action is three services (``send_goal``,
 ``cancel_goal``, ``get_result``) and two topics, all on one node.
@@ -113,6 +115,9 @@ def _reply_attachment(request_attachment: bytes | None) -> bytearray | None:
 
 _STAMP = struct.Struct("<q")
 _CDR_LE = b"\x00\x01"
+_BEST_MATCHING = zenoh.QueryTarget.BEST_MATCHING
+_NO_CONSOLIDATION = zenoh.ConsolidationMode.NONE
+_Callback = zenoh.handlers.Callback
 
 
 class _Decoder:
@@ -251,6 +256,12 @@ class Service(Generic[ReqT, RespT]):
 
     ``callback(request, response) -> response`` runs in the executor; ``response`` is
     a fresh default response to fill in (rclpy's convention).
+
+    A visnav addition: the callback may instead return a :class:`~visnav.graph.future.Future`
+    (a *deferred response*) and complete it later from any thread, with the response or
+    an exception; the caller is answered then, and the executor serves other callbacks
+    meanwhile (rclpy gets this from ``async def`` callbacks). The ROS 1 bridge hands slow
+    ROS 1 calls to worker threads this way.
     """
 
     def __init__(
@@ -268,6 +279,7 @@ class Service(Generic[ReqT, RespT]):
         self.qos = qos
         self.entity_id = node.context.next_id()
         self.queue: deque[_Request] = deque()
+        self._queue_limit = qos.queue_limit  # QoSProfile is frozen
         self.dropped = 0
         """Requests pushed out of the full queue (their callers got an error)."""
         self.bad_requests = 0
@@ -290,7 +302,7 @@ class Service(Generic[ReqT, RespT]):
     # ------------------------------------------------------------------ queue (context lock held)
     def enqueue(self, request: _Request) -> None:
         """Queue a request; a full keep-last queue answers its oldest one with an error."""
-        limit = self.qos.queue_limit
+        limit = self._queue_limit
         if limit is not None and len(self.queue) >= limit:
             old = self.queue.popleft()
             self.dropped += 1
@@ -334,6 +346,14 @@ class Service(Generic[ReqT, RespT]):
         except Exception as exc:
             item.fail(f"{self.describe()} raised {type(exc).__name__}: {exc}")
             raise
+        if type(result) is Future:
+            # a deferred response: answered from the thread that completes the future
+            result.on_complete(functools.partial(self._finish_deferred, item, result))
+            return
+        self._answer(item, result)
+
+    def _answer(self, item: _Request, result: Any) -> None:
+        """Send ``result`` (what the callback produced) to ``item``'s caller."""
         if type(result) is not self._response_cls:
             got = getattr(result, "__msgtype__", type(result).__name__)
             text = (
@@ -347,6 +367,26 @@ class Service(Generic[ReqT, RespT]):
         except MessageError as exc:
             item.fail(f"{self.describe()} could not send its response: {exc}")
             raise
+
+    def _finish_deferred(self, item: _Request, future: Future[Any]) -> None:
+        """Answer a deferred call once its future completed (in the completing thread)."""
+        exc = future.exception()
+        if future.cancelled():
+            item.fail(f"{self.describe()} cancelled the call before answering")
+            return
+        if exc is not None:
+            item.fail(f"{self.describe()} raised {type(exc).__name__}: {exc}")
+            self._log_deferred(exc)
+            return
+        try:
+            self._answer(item, future.result())
+        except Exception as error:  # noqa: BLE001 - answered by _answer; log, as the executor would
+            self._log_deferred(error)
+
+    def _log_deferred(self, exc: BaseException) -> None:
+        self.node.get_logger().error(
+            f"{self.describe()}: its deferred response failed: {type(exc).__name__}: {exc}"
+        )
 
     # ------------------------------------------------------------------ transport
     def attach_transport(self, session: zenoh.Session, key: str) -> None:
@@ -443,13 +483,7 @@ class Client(Generic[ReqT, RespT]):
             ServiceError: ``request`` is not of the service's request type, or it
                 cannot be serialized.
         """
-        if type(request) is not self._request_cls:
-            got = getattr(request, "__msgtype__", type(request).__name__)
-            msg = (
-                f"{self.describe()}: the request is a {got}, expected "
-                f"{self.srv_type.request_type_name}; build it with {self.srv_type.name}.Request"
-            )
-            raise ServiceError(msg)
+        self._check_request(request)
         future: Future[RespT] = Future(self._dispatch)
         ctx = self.node.context
         local = ctx.local_service(self.srv_name, self.srv_type.name)
@@ -467,33 +501,60 @@ class Client(Generic[ReqT, RespT]):
         self._send(future, payload, timeout_sec)
         return future
 
+    def _check_request(self, request: Any) -> None:
+        if type(request) is not self._request_cls:
+            got = getattr(request, "__msgtype__", type(request).__name__)
+            msg = (
+                f"{self.describe()}: the request is a {got}, expected "
+                f"{self.srv_type.request_type_name}; build it with {self.srv_type.name}.Request"
+            )
+            raise ServiceError(msg)
+
+    def _outcome(self, reply: Any, timeout_sec: float | None) -> Any:
+        """The response in a Zenoh reply, or the exception it stands for (returned)."""
+        ok = reply.ok
+        if ok is None:
+            err = reply.err
+            text = _text(err.payload) if err is not None else "an error"
+            if "Timeout" in text:
+                return self._timeout(timeout_sec)
+            return ServiceError(f"{self.describe()}: {text}")
+        try:
+            return self._decode_response(ok.payload.to_bytes())
+        except MessageError as exc:
+            return ServiceError(f"{self.describe()}: the server's response is unreadable: {exc}")
+
+    def _get(self, payload: bytes | bytearray, handler: Any, timeout_sec: float | None) -> Any:
+        """Send one request as a Zenoh ``get`` with rmw_zenoh's attachment."""
+        # encode_service_attachment(seq, now, gid), with the GID part made once
+        att = _ATTACH.pack(next(self._seq), time.time_ns()) + self._gid_tail
+        session, key = self._session, self._key
+        if session is None or key is None:  # pragma: no cover - checked by the callers
+            raise self._no_server()
+        return session.get(
+            key,
+            handler,
+            payload=payload,
+            attachment=att,
+            target=_BEST_MATCHING,
+            consolidation=_NO_CONSOLIDATION,
+            timeout=timeout_sec if timeout_sec is not None else _FOREVER_S,
+        )
+
     def _send(
         self, future: Future[RespT], payload: bytes | bytearray, timeout_sec: float | None
     ) -> None:
         got = [False]
-        decode = self._decode_response
 
         def on_reply(reply: Any) -> None:
             if got[0]:
                 return
             got[0] = True
-            ok = reply.ok
-            if ok is None:
-                err = reply.err
-                text = _text(err.payload) if err is not None else "an error"
-                if "Timeout" in text and future.done() is False:
-                    future.set_exception(self._timeout(timeout_sec))
-                    return
-                future.set_exception(ServiceError(f"{self.describe()}: {text}"))
-                return
-            try:
-                response = decode(ok.payload.to_bytes())
-            except MessageError as exc:
-                future.set_exception(
-                    ServiceError(f"{self.describe()}: the server's response is unreadable: {exc}")
-                )
-                return
-            future.set_result(response)
+            outcome = self._outcome(reply, timeout_sec)
+            if isinstance(outcome, BaseException):
+                future.set_exception(outcome)
+            else:
+                future.set_result(outcome)
 
         def on_done() -> None:
             if not got[0]:
@@ -503,23 +564,9 @@ class Client(Generic[ReqT, RespT]):
                     future.set_exception(self._no_server(mid_call=True))
 
         deadline = time.monotonic() + (timeout_sec if timeout_sec is not None else _FOREVER_S)
-        # encode_service_attachment(seq, now, gid), with the GID part made once
-        att = _ATTACH.pack(next(self._seq), time.time_ns()) + self._gid_tail
-        session, key = self._session, self._key
-        if session is None or key is None:  # pragma: no cover - checked by call_async
-            future.set_exception(self._no_server())
-            return
-        session.get(
-            key,
-            # direct: the handlers only decode and complete the future (indirect costs a
-            # Python thread per call)
-            zenoh.handlers.Callback(on_reply, on_done, indirect=False),
-            payload=payload,
-            attachment=att,
-            target=zenoh.QueryTarget.BEST_MATCHING,
-            consolidation=zenoh.ConsolidationMode.NONE,
-            timeout=timeout_sec if timeout_sec is not None else _FOREVER_S,
-        )
+        # direct: the handlers only decode and complete the future (indirect costs a Python
+        # thread per call)
+        self._get(payload, _Callback(on_reply, on_done, indirect=False), timeout_sec)
 
     def _watch(self, future: Future[RespT], timeout_sec: float | None) -> None:
         """Fail an in-process call's future at its timeout."""
@@ -567,6 +614,12 @@ class Client(Generic[ReqT, RespT]):
                 "from another thread"
             )
             raise GraphError(msg)
+        ctx = self.node.context
+        if (
+            self._session is not None
+            and ctx.local_service(self.srv_name, self.srv_type.name) is None
+        ):
+            return self._call_remote(request, timeout_sec)  # type: ignore[no-any-return]
         future = self.call_async(request, timeout_sec=timeout_sec)
         if not future.wait(timeout_sec):
             future.cancel()
@@ -575,6 +628,30 @@ class Client(Generic[ReqT, RespT]):
         if exc is not None:
             raise exc
         return future.result()  # type: ignore[return-value]  # done without exception
+
+    def _call_remote(self, request: Any, timeout_sec: float | None) -> Any:
+        """``call()`` to another process: the reply waits in a Zenoh channel for this thread.
+
+        No Python runs on Zenoh's thread (a channel rather than a callback completing a
+        future): the caller takes the reply and decodes it itself.
+        """
+        self._check_request(request)
+        try:
+            payload = self._encode_request(request)
+        except MessageError as exc:
+            raise ServiceError(f"{self.describe()}: {exc}") from exc
+        deadline = time.monotonic() + (timeout_sec if timeout_sec is not None else _FOREVER_S)
+        replies = self._get(payload, zenoh.handlers.DefaultHandler(), timeout_sec)
+        try:
+            reply = replies.recv()  # a Ctrl-C interrupts it
+        except zenoh.ZError:  # closed without a reply: no server, or it went away
+            if timeout_sec is not None and time.monotonic() >= deadline - 0.01:
+                raise self._timeout(timeout_sec) from None
+            raise self._no_server(mid_call=True) from None
+        outcome = self._outcome(reply, timeout_sec)
+        if isinstance(outcome, BaseException):
+            raise outcome
+        return outcome
 
     # ------------------------------------------------------------------ executor entity
     def _dispatch(self, future: Future[Any]) -> None:
