@@ -140,9 +140,18 @@ class Browser:
 
 @contextlib.contextmanager
 def headless_chromium(
-    user_data_dir: Path, *, width: int = 1280, height: int = 800, log: Path | None = None
+    user_data_dir: Path,
+    *,
+    width: int = 1280,
+    height: int = 800,
+    log: Path | None = None,
+    timeout_s: float = 30.0,
 ) -> Iterator[Browser]:
-    """Start Debian's chromium headless with DevTools on a loopback port; yield a page session."""
+    """Start Debian's chromium headless with DevTools on a loopback port; yield a page session.
+
+    ``timeout_s`` bounds each DevTools call (a screenshot of a busy software-rendered page
+    on a loaded machine can take a minute).
+    """
     cmd = [
         "/usr/bin/chromium",
         *CHROMIUM_FLAGS,
@@ -152,6 +161,7 @@ def headless_chromium(
         "--remote-debugging-port=0",
         "about:blank",
     ]
+    (user_data_dir / "DevToolsActivePort").unlink(missing_ok=True)  # a previous browser's
     out = log.open("wb") if log is not None else subprocess.DEVNULL
     proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
     ws: WebSocket | None = None
@@ -167,7 +177,7 @@ def headless_chromium(
             targets = json.load(resp)
         page = next(t for t in targets if t.get("type") == "page")
         path = page["webSocketDebuggerUrl"].split(f":{port}", 1)[1]
-        ws = WebSocket("127.0.0.1", port, path)
+        ws = WebSocket("127.0.0.1", port, path, timeout_s=timeout_s)
         browser = Browser(ws)
         browser.call("Page.enable")
         yield browser

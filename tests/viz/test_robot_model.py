@@ -145,9 +145,10 @@ def test_layout_puts_the_cameras_beside_the_3d_view(
 ) -> None:
     sent: list[list[str]] = []
 
-    def record(root: str, cameras: list[str]) -> Any:
+    def record(root: str, cameras: list[str], *, timeline: str) -> Any:
         sent.append(list(cameras))
-        return default_blueprint(root, cameras)
+        assert timeline == "ros_time"
+        return default_blueprint(root, cameras, timeline=timeline)
 
     monkeypatch.setattr(sink_module, "default_blueprint", record)
     s = session(fixed_frame="cam")
@@ -168,6 +169,7 @@ def test_layout_puts_the_cameras_beside_the_3d_view(
         "/world/cameras/front",
         "/world/cameras/rear",
     ]
+    assert bp.time_panel is not None  # follows the newest data, as RViz shows now
 
 
 @settings(max_examples=150, deadline=None)

@@ -349,7 +349,7 @@ def test_unsupported_types_and_strict_mode(session: Any, vz: Any) -> None:
         strict.log("/cloud", bad)
     strict.finish()
     assert RerunSink.supports("sensor_msgs/msg/Image")
-    assert len(SUPPORTED_TYPES) == 13  # String: robot_description only
+    assert len(SUPPORTED_TYPES) == 14  # String: robot_description only
 
 
 def test_auto_fixed_frame_is_the_tf_root_and_tf_frames_are_entities(session: Any, vz: Any) -> None:

@@ -30,6 +30,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--topics", nargs="+", default=None, help="only these topics (plus /tf, /tf_static)"
     )
     parser.add_argument(
+        "--display-config",
+        "-d",
+        default=None,
+        metavar="FILE.rviz",
+        help="an RViz config: its fixed frame, enabled displays' topics and colours (rviz -d)",
+    )
+    parser.add_argument(
         "--save", default=None, metavar="FILE.rrd", help="also write a .rrd file (else nothing)"
     )
     parser.add_argument(
@@ -130,6 +137,15 @@ def cmd_view(args: argparse.Namespace) -> int:
         memory_limit=args.memory_limit,
         connect=args.connect,
     )
+    rviz = None
+    if args.display_config is not None:
+        from visnav.viz.rviz_config import load_rviz_config
+
+        rviz = load_rviz_config(args.display_config)
+        if rviz.note:
+            print(rviz.note, file=sys.stderr)
+        if args.topics is None:
+            args.topics = rviz.topics
     rates: dict[str, float] | None = {} if args.all_frames else None
     sink: DisplaySink | None = None
     try:
@@ -140,6 +156,7 @@ def cmd_view(args: argparse.Namespace) -> int:
             viewer.recording,
             fixed_frame=args.fixed_frame,
             max_points=args.max_points or None,
+            rviz=rviz,
         )
         try:
             if args.bag is not None:
@@ -148,7 +165,7 @@ def cmd_view(args: argparse.Namespace) -> int:
                     rerun_sink, rates_hz=rates, world_loader=loader, block=True, max_pending=16
                 )
                 start = time.perf_counter()
-                count = feed_bag(sink, args.bag, topics=args.topics)
+                count = feed_bag(sink, args.bag, topics=args.topics, missing_ok=rviz is not None)
                 wall = time.perf_counter() - start
                 print(f"logged {count} messages of {args.bag} in {wall:.1f} s", file=sys.stderr)
                 if args.web:

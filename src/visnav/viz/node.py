@@ -6,8 +6,9 @@ topic of its context's graph to it, placed in ``fixed_frame`` through TF as
 ``visnav view`` does (a :class:`~visnav.viz.live_view.LiveView`: display rate, worker
 thread, the sim's world). Parameters: ``fixed_frame`` (default: map, odom, world or the
 TF root), ``web`` (true), ``port`` (9090) and ``grpc_port`` (9876), ``memory_limit``
-(512MB), ``save`` (an ``.rrd`` path, default none), ``config`` (an ``.rviz`` file: read
-for the fixed frame only by the roslaunch import), ``packages`` (``name=DIR``: the robot
+(512MB), ``save`` (an ``.rrd`` path, default none), ``config`` (an ``.rviz`` file, as
+``rviz -d``: its fixed frame, the topics of its enabled displays and their colours, see
+:mod:`visnav.viz.rviz_config`), ``packages`` (``name=DIR``: the robot
 model's ``package://`` meshes; the roslaunch import gives every package it knows).
 """
 
@@ -20,6 +21,7 @@ from visnav.graph.clock import Clock, ClockType
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.viz.live_view import LiveView
+from visnav.viz.rviz_config import RvizConfigError, load_rviz_config
 from visnav.viz.viewer import DEFAULT_GRPC_PORT, DEFAULT_MEMORY_LIMIT, DEFAULT_WEB_PORT
 
 if TYPE_CHECKING:
@@ -38,7 +40,7 @@ class ViewerParams:
     grpc_port: int = param(DEFAULT_GRPC_PORT, description="viewer data port (0: a free one)")
     memory_limit: str = param(DEFAULT_MEMORY_LIMIT, description="kept for late pages")
     save: str = param("", description="also write an .rrd recording here (empty: none)")
-    config: str = param("", description="an .rviz file (read by the roslaunch import only)")
+    config: str = param("", description="an .rviz file: fixed frame, displays, colours")
     packages: tuple[str, ...] = param(("",), description="name=DIR for package:// meshes")
 
 
@@ -51,6 +53,14 @@ class ViewerNode(Node):
         packages = dict(
             item.split("=", 1) for item in p.packages if "=" in item and item.split("=", 1)[1]
         )
+        rviz = None
+        if p.config:
+            try:
+                rviz = load_rviz_config(p.config)
+            except RvizConfigError as exc:  # RViz too starts with its defaults
+                self.get_logger().warning(f"{exc}; showing every topic")
+        if rviz is not None and rviz.note:
+            self.get_logger().info(rviz.note)
         self.view = LiveView(
             self.context,
             web=p.web,
@@ -60,6 +70,8 @@ class ViewerNode(Node):
             save=p.save or None,
             fixed_frame=p.fixed_frame or None,
             packages=packages,
+            topics=rviz.topics if rviz is not None else None,
+            rviz=rviz,
         )
         self.viewer = self.view.viewer
         self.feed = self.view.feed

@@ -1,7 +1,8 @@
 """Which world to draw: from the simulator node's parameters (live) or a run's files (bag).
 
 The viewer draws the world the simulator built (RViz shows no world; Gazebo's window does).
-Live, :func:`world_from_graph` asks the ``sim`` node for its ``world``, ``world_params``,
+Live, :func:`world_from_graph` asks the simulator node (``sim``, or ``gazebo`` in the
+TurtleBot3 scenarios: the ``/clock`` publisher) for its ``world``, ``world_params``,
 ``seed`` and ``packages`` parameters (the parameter services, as ``visnav param get``)
 and loads the same world from its description (no MuJoCo). For a bag of ``visnav run``,
 :func:`world_for_bag` reads the run's ``summary.json`` beside the bag (its ``scenario``
@@ -17,8 +18,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from visnav.description.urdf_model import find_package
 from visnav.description.world import load_world
 from visnav.description.worldmodel import WorldDescription
+from visnav.graph.errors import ServiceError
 from visnav.graph.node import Node
 from visnav.graph.param_client import ParameterClient
 from visnav.safe_yaml import load_yaml
@@ -38,10 +41,14 @@ SCENARIO_WORLDS: dict[str, str] = {
     "car": "office",
     "car-slam": "office",
     "drone": "forest",
-    "tb3-nav": "turtlebot3_world",
-    "tb3-slam": "turtlebot3_world",
+    "tb3-nav": "package://turtlebot3_gazebo/worlds/turtlebot3_world.world",
+    "tb3-slam": "package://turtlebot3_gazebo/worlds/turtlebot3_world.world",
 }
-"""The world of each built-in scenario (what its launch file gives the ``sim`` node)."""
+"""The world of each built-in scenario (what its launch file gives the ``sim`` node): a
+built-in world or ``package://PKG/PATH``, found on ``ROS_PACKAGE_PATH``."""
+
+_SIM_NODE_NAMES = ("sim", "gazebo")
+_PARAM_ATTEMPTS = 3
 
 
 def load_sim_world(
@@ -86,11 +93,29 @@ def load_sim_world(
     )
 
 
-def find_sim_node(node: Node, *, name: str = "sim") -> str | None:
-    """The fully qualified name of the graph's node called ``name`` (any namespace)."""
-    for node_name, namespace in sorted(node.get_node_names_and_namespaces()):
-        if node_name == name:
-            return f"{namespace.rstrip('/')}/{node_name}"
+def find_sim_node(node: Node, *, name: str | None = None) -> str | None:
+    """The fully qualified name of the graph's simulator node, None if there is none.
+
+    The simulator is the node that publishes ``/clock`` and serves parameters (the
+    built-in scenarios name it ``sim``, the TurtleBot3 ones ``gazebo``, as
+    ``turtlebot3_world.launch`` does); failing that, a node called ``sim`` or ``gazebo``.
+
+    Args:
+        node: the node that asks.
+        name: only a node of this name (any namespace).
+    """
+    names = sorted(node.get_node_names_and_namespaces())
+    if name is not None:
+        wanted: tuple[str, ...] = (name,)
+    else:
+        for endpoint in node.get_publishers_info_by_topic("/clock"):
+            if not endpoint.node_name.startswith("_"):  # hidden nodes (bridges, tools)
+                return f"{endpoint.node_namespace.rstrip('/')}/{endpoint.node_name}"
+        wanted = _SIM_NODE_NAMES
+    for wanted_name in wanted:
+        for node_name, namespace in names:
+            if node_name == wanted_name:
+                return f"{namespace.rstrip('/')}/{node_name}"
     return None
 
 
@@ -99,15 +124,16 @@ def world_from_graph(
 ) -> WorldDescription | None:
     """The world of the graph's simulator node, None when there is no such node.
 
-    Blocks for up to ``wait_s`` (for the node to appear) plus ``timeout_s`` per call:
-    call it off the thread that spins the simulator node (the
+    The simulator node is found by :func:`find_sim_node`. Blocks for up to ``wait_s``
+    (for the node to appear) plus ``timeout_s`` per call (the parameters are asked for
+    up to three times): call it off the thread that spins the simulator node (the
     :class:`~visnav.viz.display_sink.DisplaySink` worker does).
 
     Args:
         node: the node that asks.
-        sim_node: the simulator node's full name (default: the node named ``sim``).
+        sim_node: the simulator node's full name (default: :func:`find_sim_node`).
         timeout_s: each parameter call's timeout.
-        wait_s: how long to wait for a ``sim`` node to appear in the graph.
+        wait_s: how long to wait for a simulator node to appear in the graph.
     """
     deadline = time.monotonic() + wait_s
     target = sim_node
@@ -123,9 +149,16 @@ def world_from_graph(
         if not client.wait_for_services(timeout_s):
             _LOG.debug("viewer: %s serves no parameters: no world geometry", target)
             return None
-        world, world_params, seed, packages = client.get_parameters(
-            ["world", "world_params", "seed", "packages"]
-        )
+        for attempt in range(1, _PARAM_ATTEMPTS + 1):  # a loaded machine answers late
+            try:
+                world, world_params, seed, packages = client.get_parameters(
+                    ["world", "world_params", "seed", "packages"]
+                )
+                break
+            except ServiceError:
+                if attempt == _PARAM_ATTEMPTS:
+                    raise
+                _LOG.debug("viewer: %s's parameters: no answer yet, asking again", target)
     finally:
         client.close()
     if not world:
@@ -155,5 +188,22 @@ def world_for_bag(
         if name is None:
             return None
         seed = data.get("seed")
-        return load_sim_world(name, seed=int(seed) if isinstance(seed, int) else -1)
+        packages: list[str] = []
+        if name.startswith("package://"):
+            package, _, rest = name[len("package://") :].partition("/")
+            share = find_package(package, base_dir=None)
+            if share is None:
+                _LOG.warning(
+                    "viewer: %s's world %s: package %s is not on ROS_PACKAGE_PATH: no world "
+                    "geometry (or give --world FILE)",
+                    path,
+                    name,
+                    package,
+                )
+                return None
+            name = str(share / rest)
+            packages.append(f"{package}={share}")
+        return load_sim_world(
+            name, seed=int(seed) if isinstance(seed, int) else -1, packages=packages
+        )
     return None

@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,13 +46,19 @@ from visnav.msgs.time import time_to_ns
 from visnav.perception.image_transport import decompress_depth, split_transport_topic
 from visnav.tf.transforms import matrix_to_quaternion
 from visnav.viz._rerun import rr
-from visnav.viz.display import image_to_display, message_to_display
+from visnav.viz.display import message_to_display
 from visnav.viz.errors import VizError
 from visnav.viz.geometry import cloud_points, colorize, pose_matrix, scan_points, transform_points32
+from visnav.viz.image_archetypes import (
+    depth_archetype,
+    image_archetype,
+    jpeg_archetype,
+)
 from visnav.viz.layout import default_blueprint
 from visnav.viz.markers import DELETE, DELETEALL, MESH_RESOURCE, marker_archetypes
 from visnav.viz.placement import FramePlacer
 from visnav.viz.robot_model import RobotModel, parse_robot_description
+from visnav.viz.rviz_config import RvizConfig
 from visnav.viz.world_view import log_world
 
 __all__ = ["SUPPORTED_TYPES", "RerunSink", "shows"]
@@ -70,6 +76,7 @@ SUPPORTED_TYPES = (
     "nav_msgs/msg/Path",
     "nav_msgs/msg/OccupancyGrid",
     "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseArray",
     "visualization_msgs/msg/Marker",
     "visualization_msgs/msg/MarkerArray",
     "std_msgs/msg/String",
@@ -87,28 +94,6 @@ def shows(topic: str, type_name: str) -> bool:
     return type_name in SUPPORTED_TYPES
 
 
-_COLOR_MODELS: dict[str, Literal["L", "RGB", "RGBA", "BGR", "BGRA"]] = {
-    "rgb8": "RGB",
-    "bgr8": "BGR",
-    "rgba8": "RGBA",
-    "bgra8": "BGRA",
-    "rgb16": "RGB",
-    "bgr16": "BGR",
-    "rgba16": "RGBA",
-    "bgra16": "BGRA",
-    "mono8": "L",
-    "mono16": "L",
-    "8UC1": "L",
-}
-_PIXEL_FORMATS = {
-    "bayer_rggb8": "BayerRGGB8",
-    "bayer_bggr8": "BayerBGGR8",
-    "bayer_gbrg8": "BayerGBRG8",
-    "bayer_grbg8": "BayerGRBG8",
-    "yuv422_yuy2": "YUY2",
-    "yuyv": "YUY2",
-}
-_DEPTH_METER = {"32FC1": 1.0, "16UC1": 1000.0}
 _KEY_SEP = "\x00"
 _PREFERRED_FIXED = ("map", "odom", "world")
 _ROOT_AFTER_NS = 1_000_000_000  # TF stamp time seen before the root is taken as fixed frame
@@ -116,26 +101,11 @@ _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 _SCAN_COLOR = (255, 64, 64)
 _POSE_COLOR = (255, 40, 40)
 _PATH_COLOR = (40, 200, 255)
-
-
-def _jpeg(rgb: NDArray[np.uint8], quality: int) -> Any:
-    """An RGB (or grey) image as a JPEG ``EncodedImage`` (OpenCV releases the GIL)."""
-    import cv2  # noqa: PLC0415 (OpenCV is a dependency; loaded with the first image)
-
-    bgr = rgb[..., ::-1] if rgb.ndim == 3 else rgb
-    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(bgr), [cv2.IMWRITE_JPEG_QUALITY, quality])
-    if not ok:
-        text = f"OpenCV could not JPEG-encode a {rgb.shape} {rgb.dtype} image"
-        raise VizError(text)
-    return rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg")
-
-
-def _depth_archetype(array: NDArray[Any], encoding: str) -> Any:
-    """Depth as 16-bit millimetres (half the bytes of 32FC1; 0 = no return)."""
-    if encoding == "32FC1":
-        mm = np.nan_to_num(np.asarray(array, dtype=np.float32) * 1000.0, nan=0.0, posinf=0.0)
-        return rr.DepthImage(np.clip(mm, 0, 65535).astype(np.uint16), meter=1000.0)
-    return rr.DepthImage(array, meter=_DEPTH_METER.get(encoding, 1.0))
+_GRID_COLORMAPS: dict[str, Any] = {
+    "map": rr.components.Colormap.RvizMap,
+    "costmap": rr.components.Colormap.RvizCostmap,
+    "raw": rr.components.Colormap.Grayscale,
+}
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -173,6 +143,10 @@ class RerunSink:
         jpeg_quality: colour images are sent JPEG-compressed at this quality (1-100), as
             ``EncodedImage`` (a 640x480 frame is ~30 KB instead of 900 KB); None sends
             them raw. Depth images are sent as 16-bit millimetres.
+        rviz: an RViz config (:func:`visnav.viz.rviz_config.load_rviz_config`): its fixed
+            frame (unless ``fixed_frame``), its displays' colours and map colour schemes,
+            and TF axes only with an enabled TF display. Which topics are fed is the
+            feed's choice (``topics=rviz.topics``).
     """
 
     def __init__(
@@ -193,6 +167,7 @@ class RerunSink:
         tf_prefix: str = "",
         packages: Mapping[str, str] | None = None,
         jpeg_quality: int | None = 80,
+        rviz: RvizConfig | None = None,
     ) -> None:
         if jpeg_quality is not None and not 1 <= jpeg_quality <= 100:
             text = f"jpeg_quality is {jpeg_quality}: expected 1..100 (or None for raw images)"
@@ -203,6 +178,13 @@ class RerunSink:
             raise VizError(text)
         self.recording = recording
         self._packages = dict(packages or {})  # package:// meshes of robot_description
+        if rviz is not None and fixed_frame is None:
+            fixed_frame = rviz.fixed_frame
+        self._colors = rviz.colors if rviz is not None else {}
+        self._schemes = {
+            d.topic: d.color_scheme for d in (rviz.enabled if rviz else []) if d.color_scheme
+        }
+        self._show_tf_axes = rviz.show_tf if rviz is not None else True
         # no fixed frame given: chosen from TF (see _tf), not from the first data message
         self.placer = FramePlacer(fixed_frame, queue_size=queue_size, auto_root=False)
         self._first_tf_ns: int | None = None
@@ -249,13 +231,14 @@ class RerunSink:
             "nav_msgs/msg/Path": self._path,
             "nav_msgs/msg/OccupancyGrid": self._grid,
             "geometry_msgs/msg/PoseStamped": self._pose,
+            "geometry_msgs/msg/PoseArray": self._pose_array,
             "visualization_msgs/msg/Marker": self._marker_msg,
             "visualization_msgs/msg/MarkerArray": self._marker_array,
             _STRING: self._robot_description,
         }
         recording.log(self._root, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         if layout:
-            recording.send_blueprint(default_blueprint(self._root, []))
+            recording.send_blueprint(default_blueprint(self._root, [], timeline=timeline))
 
     # ------------------------------------------------------------------ public
 
@@ -417,7 +400,7 @@ class RerunSink:
 
     def _log_tf_frames(self, t: int) -> None:
         self._at(t)
-        for frame in self._tf_frames:
+        for frame in self._tf_frames if self._show_tf_axes else ():
             if not frame:
                 continue
             matrix = self.placer.lookup(frame, 0)
@@ -457,7 +440,9 @@ class RerunSink:
         if image and camera not in self._cameras:  # a pane once it has an image to show
             self._cameras.append(camera)
             if self._layout:
-                self.recording.send_blueprint(default_blueprint(self._root, self._cameras))
+                self.recording.send_blueprint(
+                    default_blueprint(self._root, self._cameras, timeline=self._timeline)
+                )
         return camera, "/".join([camera, *leaf_parts])
 
     def _place_camera(self, topic: str, camera: str, header: Any, t: int) -> None:
@@ -470,35 +455,15 @@ class RerunSink:
     def _image(self, topic: str, msg: Any, t: int) -> None:
         camera, entity = self._camera_paths(topic, image=True)
         self._at(t)
-        self.recording.log(entity, self._image_archetype(msg, self._jpeg_quality))
+        self.recording.log(entity, image_archetype(msg, self._jpeg_quality))
         if camera not in self._cameras_with_info:
             self._place_camera(topic, camera, msg.header, t)
-
-    @staticmethod
-    def _image_archetype(msg: Any, jpeg_quality: int | None = None) -> Any:
-        encoding = msg.encoding
-        if encoding in _PIXEL_FORMATS:
-            data = np.asarray(image_to_numpy(msg))
-            return rr.Image(
-                bytes=np.ascontiguousarray(data).tobytes(),
-                width=int(msg.width),
-                height=int(msg.height),
-                pixel_format=getattr(rr.PixelFormat, _PIXEL_FORMATS[encoding]),
-            )
-        array = image_to_numpy(msg)
-        if encoding in _DEPTH_METER:
-            return _depth_archetype(array, encoding)
-        if jpeg_quality is not None:
-            return _jpeg(image_to_display(array, encoding), jpeg_quality)
-        if encoding in _COLOR_MODELS:
-            return rr.Image(array, color_model=_COLOR_MODELS[encoding])
-        return rr.Image(image_to_display(array, encoding), color_model="RGB")
 
     def _compressed(self, topic: str, msg: Any, t: int) -> None:
         camera, entity = self._camera_paths(topic, image=True)
         if "compressedDepth" in msg.format:
             depth = decompress_depth(msg)
-            archetype: Any = _depth_archetype(image_to_numpy(depth), depth.encoding)
+            archetype: Any = depth_archetype(image_to_numpy(depth), depth.encoding)
         else:
             data = np.asarray(msg.data, dtype=np.uint8).tobytes()
             if data[:2] == b"\xff\xd8":
@@ -506,7 +471,7 @@ class RerunSink:
             elif data[:8] == _PNG_MAGIC:
                 archetype = rr.EncodedImage(contents=data, media_type="image/png")
             elif self._jpeg_quality is not None:
-                archetype = _jpeg(message_to_display(msg), self._jpeg_quality)
+                archetype = jpeg_archetype(message_to_display(msg), self._jpeg_quality)
             else:
                 archetype = rr.Image(message_to_display(msg), color_model="RGB")
         self._at(t)
@@ -550,7 +515,9 @@ class RerunSink:
 
         def apply(matrix: NDArray[np.float64]) -> None:
             points = transform_points32(matrix, xyz)
-            rgb = colors if colors is not None else colorize(points[:, 2])
+            rgb: Any = self._colors.get(topic)
+            if rgb is None:
+                rgb = colors if colors is not None else colorize(points[:, 2])
             self._at(t)
             self.recording.log(entity, rr.Points3D(points, colors=rgb))
 
@@ -562,17 +529,19 @@ class RerunSink:
 
         def apply(matrix: NDArray[np.float64]) -> None:
             points = transform_points32(matrix, xyz)
-            rgb: Any = colorize(intensity) if intensity is not None else _SCAN_COLOR
+            rgb: Any = self._colors.get(topic)
+            if rgb is None:
+                rgb = colorize(intensity) if intensity is not None else _SCAN_COLOR
             self._at(t)
             self.recording.log(entity, rr.Points3D(points, colors=rgb, radii=0.02))
 
         self._place(topic, msg.header, apply)
 
-    def _arrow(self, world: NDArray[np.float64]) -> Any:
+    def _arrow(self, world: NDArray[np.float64], topic: str = "") -> Any:
         return rr.Arrows3D(
             origins=world[:3, 3].reshape(1, 3),
             vectors=(world[:3, 0] * self._arrow_length).reshape(1, 3),
-            colors=_POSE_COLOR,
+            colors=self._colors.get(topic, _POSE_COLOR),
         )
 
     def _odometry(self, topic: str, msg: Any, t: int) -> None:
@@ -588,7 +557,7 @@ class RerunSink:
                 track.append(position)
                 del track[: max(0, len(track) - self._path_keep)]
             self._at(t)
-            self.recording.log(entity, self._arrow(world))
+            self.recording.log(entity, self._arrow(world, topic))
             if grew and len(track) >= 2:
                 strip = np.asarray(track, dtype=np.float32)
                 self.recording.log(f"{entity}/path", rr.LineStrips3D([strip], colors=_PATH_COLOR))
@@ -601,7 +570,29 @@ class RerunSink:
 
         def apply(matrix: NDArray[np.float64]) -> None:
             self._at(t)
-            self.recording.log(entity, self._arrow(matrix @ pose))
+            self.recording.log(entity, self._arrow(matrix @ pose, topic))
+
+        self._place(topic, msg.header, apply)
+
+    def _pose_array(self, topic: str, msg: Any, t: int) -> None:
+        entity = self._entity(topic)
+        poses = [pose_matrix(p) for p in msg.poses]
+
+        def apply(matrix: NDArray[np.float64]) -> None:
+            self._at(t)
+            if not poses:
+                self.recording.log(entity, rr.Clear(recursive=False))
+                return
+            world = np.stack([matrix @ p for p in poses])
+            length = self._arrow_length * 0.5  # RViz's PoseArray arrows are shorter
+            self.recording.log(
+                entity,
+                rr.Arrows3D(
+                    origins=world[:, :3, 3],
+                    vectors=world[:, :3, 0] * length,
+                    colors=self._colors.get(topic, _POSE_COLOR),
+                ),
+            )
 
         self._place(topic, msg.header, apply)
 
@@ -618,7 +609,8 @@ class RerunSink:
                 self.recording.log(entity, rr.Clear(recursive=False))
                 return
             strip = transform_points32(matrix, local)
-            self.recording.log(entity, rr.LineStrips3D([strip], colors=(60, 255, 60)))
+            color = self._colors.get(topic, (60, 255, 60))
+            self.recording.log(entity, rr.LineStrips3D([strip], colors=color))
 
         self._place(topic, msg.header, apply)
 
@@ -647,7 +639,7 @@ class RerunSink:
                 cell_size=float(info.resolution),
                 translation=world[:3, 3],
                 quaternion=rr.Quaternion(xyzw=matrix_to_quaternion(world[:3, :3])),
-                colormap=rr.components.Colormap.RvizMap,
+                colormap=_GRID_COLORMAPS[self._schemes.get(topic, "map")],
             )
             self._at(t)
             self.recording.log(entity, grid)

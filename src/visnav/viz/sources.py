@@ -34,6 +34,7 @@ def feed_bag(
     *,
     topics: Sequence[str] | None = None,
     progress: Callable[[int], None] | None = None,
+    missing_ok: bool = False,
 ) -> int:
     """Log every message of a bag (of a supported type) to ``sink``, in time order.
 
@@ -45,6 +46,8 @@ def feed_bag(
         path: the bag (any format :func:`visnav.bag.read_bag` reads).
         topics: only these topics (default all).
         progress: called with the count of messages read so far, every 100 messages.
+        missing_ok: skip ``topics`` the bag does not have (an RViz config's displays
+            show "no messages"); else a missing topic is an error.
 
     Returns:
         The number of messages logged.
@@ -63,7 +66,8 @@ def feed_bag(
         wanted: list[str] | None = None
         if topics is not None:
             present = set(reader.topics)
-            wanted = list(dict.fromkeys([*topics, *(t for t in _TF_TOPICS if t in present)]))
+            named = [t for t in topics if t in present] if missing_ok else list(topics)
+            wanted = list(dict.fromkeys([*named, *(t for t in _TF_TOPICS if t in present)]))
         for i, raw in enumerate(reader.raw_messages(wanted)):
             try:
                 msg = reader.decode(raw)

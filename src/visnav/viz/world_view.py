@@ -5,7 +5,8 @@
 archetypes by entity: boxes, cylinders, spheres and the ground in batches (one entity per
 kind), meshes one entity each with their parts' colours. A shape's colour is its ``rgba``,
 else its material's ``rgba`` times the material texture's mean colour (the viewer draws no
-textures). :func:`log_world` logs them static: the world does not move.
+textures); the ground is drawn over the shapes' extent plus 2 m, not its whole
+(often 100 m) plane. :func:`log_world` logs them static: the world does not move.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from visnav.viz._rerun import rr
 __all__ = ["log_world", "shape_color", "world_archetypes"]
 
 _DEFAULT_RGBA = (0.7, 0.7, 0.7, 1.0)
+_GROUND_MARGIN_M = 2.0
 
 
 def _u8(rgba: tuple[float, ...]) -> tuple[int, int, int, int]:
@@ -72,6 +74,35 @@ def _mesh_archetypes(shape: Mesh, color: tuple[int, int, int, int] | None) -> It
             triangle_indices=part.faces.astype(np.uint32),
             albedo_factor=rgba,
         )
+
+
+def _ground_extent(world: WorldDescription) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The ground's drawn rectangle: its size, cut to the world's shapes plus a margin.
+
+    Gazebo's window looks at the world from nearby; a viewer frames its whole scene, so a
+    100 m ground plane around a 5 m arena (turtlebot3_world) would shrink the arena to a
+    dot. The ground is drawn over the shapes' extent plus :data:`_GROUND_MARGIN_M`.
+    """
+    assert world.ground is not None
+    sx, sy = world.ground.size[0] / 2.0, world.ground.size[1] / 2.0
+    points: list[NDArray[np.float64]] = []
+    for shape in world.shapes:
+        pos = np.asarray(shape.pos, dtype=np.float64)
+        if isinstance(shape, Mesh):
+            lo, hi = (np.asarray(b, dtype=np.float64) for b in shape.bounds)
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                                for z in (lo[2], hi[2])])  # fmt: skip
+            points.append(corners @ shape.rotation.T + pos)
+        else:
+            points.append(pos.reshape(1, 3))
+    if not points:
+        return (-sx, -sy), (sx, sy)
+    xy = np.concatenate(points)[:, :2]
+    lo_xy = np.maximum(xy.min(axis=0) - _GROUND_MARGIN_M, (-sx, -sy))
+    hi_xy = np.minimum(xy.max(axis=0) + _GROUND_MARGIN_M, (sx, sy))
+    if np.any(hi_xy <= lo_xy):
+        return (-sx, -sy), (sx, sy)
+    return (float(lo_xy[0]), float(lo_xy[1])), (float(hi_xy[0]), float(hi_xy[1]))
 
 
 def world_archetypes(world: WorldDescription, *, root: str = "world") -> list[tuple[str, Any]]:
@@ -148,9 +179,9 @@ def world_archetypes(world: WorldDescription, *, root: str = "world") -> list[tu
     ground = world.ground
     if ground is not None:
         color = shape_color(ground.rgba, ground.material, materials, textures)
-        sx, sy = ground.size[0] / 2.0, ground.size[1] / 2.0
+        (x0, y0), (x1, y1) = _ground_extent(world)
         z = ground.z - 0.005  # just under the map, which RViz draws at z = 0
-        verts = np.array([[-sx, -sy, z], [sx, -sy, z], [sx, sy, z], [-sx, sy, z]], np.float32)
+        verts = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], np.float32)
         out.append(
             (
                 f"{base}/ground",
