@@ -147,7 +147,6 @@ def bench_in_process(n: int = N_CALLS) -> tuple[float, float]:
 
 def bench_cross_process(n: int = N_CALLS, block: int = 1) -> dict[str, tuple[float, float]]:
     """visnav call vs raw Zenoh get against a child process, interleaved in blocks."""
-    import zenoh
 
     from visnav.graph import Context, Node
     from visnav.msgs.serde import serialize
@@ -179,16 +178,13 @@ def bench_cross_process(n: int = N_CALLS, block: int = 1) -> dict[str, tuple[flo
             raw_key = f"{domain}/{_RAW_KEY}"
 
             def raw_call() -> None:
-                done = threading.Event()
-                got: list[Any] = []
-                session.get(
-                    raw_key,
-                    zenoh.handlers.Callback(got.append, done.set, indirect=False),
-                    payload=payload,
-                    timeout=10.0,
-                )
-                done.wait(10.0)
-                if not got or got[0].ok is None:
+                # zenoh-python's own idiom: the default FIFO channel, read in this thread
+                try:
+                    reply = session.get(raw_key, payload=payload, timeout=10.0).recv()
+                except Exception as exc:
+                    msg = "raw get got no reply"
+                    raise RuntimeError(msg) from exc
+                if reply.ok is None:
                     msg = "raw get got no reply"
                     raise RuntimeError(msg)
 
@@ -270,16 +266,13 @@ def bench_in_process_zenoh(n: int = N_CALLS, block: int = 1) -> dict[str, tuple[
             session = zc.session
 
             def raw_call() -> None:
-                done = threading.Event()
-                got: list[Any] = []
-                session.get(
-                    raw_key,
-                    zenoh.handlers.Callback(got.append, done.set, indirect=False),
-                    payload=payload,
-                    timeout=10.0,
-                )
-                done.wait(10.0)
-                if not got or got[0].ok is None:
+                # zenoh-python's own idiom: the default FIFO channel, read in this thread
+                try:
+                    reply = session.get(raw_key, payload=payload, timeout=10.0).recv()
+                except Exception as exc:
+                    msg = "raw get got no reply"
+                    raise RuntimeError(msg) from exc
+                if reply.ok is None:
                     msg = "raw get got no reply"
                     raise RuntimeError(msg)
 

@@ -31,7 +31,6 @@ from visnav.msgs.srv import get_service_type
 
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.ci,
     pytest.mark.skipif(
         shutil.which("roscore") is None or not Path("/usr/bin/python3").exists(),
         reason="ROS 1 tools missing: apt install ros-core python3-rospy python3-std-srvs",

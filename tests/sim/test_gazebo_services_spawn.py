@@ -348,7 +348,6 @@ def _cli(domain: int, *args: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.mark.slow
-@pytest.mark.ci
 def test_spawn_drive_and_delete_from_other_processes(
     start_script: Callable[..., subprocess.Popen[str]], domain: int
 ) -> None:

@@ -33,7 +33,6 @@ BURGER = "package://turtlebot3_description/meshes/bases/burger_base.stl"
 
 
 @pytest.mark.slow
-@pytest.mark.ci
 def test_ws_protocol_client_fetches_a_mesh_and_gets_graph_updates(
     js_client: Path,  # noqa: F811
     graph: Spun,
