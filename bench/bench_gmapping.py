@@ -8,18 +8,25 @@ with 30 particles) over the recorded drive in tests/mapping/gmapping/data, and p
 * the scan matching of the same scans by a plain per-particle Python loop
   (:mod:`visnav.mapping.gmapping.reference`), on copies of the filter's state at a few
   updates, and the ratio (the outputs are checked equal);
-* the map rebuild time (slam_gmapping's updateMap) and the particle maps' memory.
+* the map rebuild time (slam_gmapping's updateMap) and the particle maps' memory;
+* with ``--against REV``: the filter of git revision ``REV`` (its gmapping package, read
+  with ``git show``) run on the same scans, update by update alternating with this tree's,
+  the median CPU per update of each and whether poses, weights and map are equal bit for bit.
 
-Run: ``python bench/bench_gmapping.py [--reference-updates N]``.
+Run: ``python bench/bench_gmapping.py [--reference-updates N] [--against REV]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import importlib
 import itertools
 import math
 import os
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -96,13 +103,77 @@ def _run(
     return times, cpu, f
 
 
+_PACKAGE = "src/visnav/mapping/gmapping"
+_FILES = ("_kernels.py", "_scan_kernels.py", "maps.py", "particle_filter.py", "params.py")
+
+
+def _filter_class_at(rev: str, into: Path) -> Any:
+    """``GmappingFilter`` of git revision ``rev``, imported as package ``gmapping_at_rev``."""
+    root = Path(__file__).resolve().parent.parent
+    pkg = into / "gmapping_at_rev"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for name in _FILES:
+        text = subprocess.run(
+            ["git", "show", f"{rev}:{_PACKAGE}/{name}"], cwd=root, check=True,
+            capture_output=True, text=True,
+        ).stdout  # fmt: skip
+        text = text.replace("visnav.mapping.gmapping.", "gmapping_at_rev.")
+        text = text.replace("from visnav.mapping.gmapping import", "from gmapping_at_rev import")
+        (pkg / name).write_text(text)
+    sys.path.insert(0, str(into))
+    return importlib.import_module("gmapping_at_rev.particle_filter").GmappingFilter
+
+
+def _against(d: Any, rev: str) -> None:
+    """Both filters on the same scans, alternating per scan: CPU per update, equality."""
+    numba.set_num_threads(1)
+    with tempfile.TemporaryDirectory() as tmp:
+        old_cls = _filter_class_at(rev, Path(tmp))
+        p = GmappingParams(**TB3)  # type: ignore[arg-type]
+        t = d["T_base_laser"]
+        n = d["ranges"].shape[1]
+        laser = LaserGeometry(
+            x=float(t[0, 3]), y=float(t[1, 3]),
+            angles=float(d["angle_min"]) + float(d["angle_increment"]) * np.arange(n),
+            max_range=float(d["range_max"]) - 0.01, usable_range=p.maxUrange,
+        )  # fmt: skip
+        odo = _odometry(d["truth"])
+        filters = [cls(p, laser, initial_pose=tuple(odo[0])) for cls in (old_cls, GmappingFilter)]
+        cpu: list[list[float]] = [[], []]
+        same = True
+        ranges = d["ranges"].astype(np.float64)
+        for i in range(len(ranges)):
+            done = []
+            for f, out in zip(filters, cpu, strict=True):
+                c0 = time.process_time()
+                done.append(f.process_scan(tuple(odo[i]), ranges[i], float(d["stamps"][i])))
+                if done[-1] and f.count > 1:
+                    out.append(time.process_time() - c0)
+            a, b = filters
+            same = same and done[0] == done[1] and a.poses.tobytes() == b.poses.tobytes()
+            same = same and a.weight_sums.tobytes() == b.weight_sums.tobytes()
+        ma, mb = (f.build_map() for f in filters)
+        same = same and ma.data.tobytes() == mb.data.tobytes() and ma.origin == mb.origin
+        same = same and ma.values.tobytes() == mb.values.tobytes()
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    before, after = (float(np.median(c)) for c in cpu)
+    print(f"against {rev} (same scans, alternating, 1 thread, {len(cpu[1])} updates): median CPU "
+          f"per update {1e3 * before:.1f} ms at {rev}, {1e3 * after:.1f} ms now, "
+          f"{before / after:.2f}x; poses, weights and map bit for bit "
+          f"{'equal' if same else 'DIFFERENT'}")  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--reference-updates", type=int, default=2)
     ap.add_argument("--runs", type=int, default=2, help="filter runs per thread count")
+    ap.add_argument("--against", metavar="REV", help="also run git revision REV's filter (A/B)")
     args = ap.parse_args()
     d = dict(np.load(FIXTURE))
     print(f"fixture: {len(d['stamps'])} scans x {d['ranges'].shape[1]} beams, 30 particles")
+    if args.against:
+        _against(d, args.against)
     print(f"load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores "
           f"(numba threads {numba.get_num_threads()}, layer after first run below)")  # fmt: skip
     _run(d)  # compile

@@ -1,17 +1,24 @@
 """numba kernels of gmapping's scan matcher (``score``, ``likelihoodAndScore``, ``optimize``).
 
 The lookups of one particle's map go through a dense window around the laser
-(:func:`_window`: for each full cell its mean hit point and which neighbours are free),
-falling back to the patch tables outside it, so the results are those of gmapping's
-per-cell rules (:mod:`visnav.mapping.gmapping.reference` is the plain-Python version).
+(:func:`_window`: each full cell's mean hit point, and per cell two 3 x 3 bit masks, its
+full neighbours and its neighbours that are not below the fullness threshold), falling
+back to the patch tables outside it. A beam's candidate cells are then one AND of two
+masks (the end point's full neighbours and the not-below neighbours of the cell one free
+step back), visited in gmapping's loop order, so the results are those of gmapping's
+per-cell rules bit for bit (:mod:`visnav.mapping.gmapping.reference` is the plain-Python
+version).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any, cast
 
 import numpy as np
 from numba import njit, prange
+from numba.cpython.unsafe.numbers import trailing_zeros
 from numpy.typing import NDArray
 
 from visnav.mapping.gmapping._kernels import (
@@ -32,6 +39,9 @@ _NULL_LIKELIHOOD = -0.5
 _WIN_MARGIN = 10  # cells the hill climbing may move before lookups leave the window
 _WIN_HALF_MAX = 90  # (2 * 90 + 1)**2 cells < 2**15: the window's codes are int16
 _SEEN = 256  # poses the hill climbing remembers (it scores about 100)
+_lowest_bit = cast("Callable[[Any], int]", trailing_zeros)  # index of the lowest set bit
+# (code, means, wx0, wy0, near, n): see :func:`_window`
+Window = tuple[I16, F64, int, int, NDArray[np.uint32], int]
 
 
 @njit(cache=True)
@@ -47,25 +57,27 @@ def _window(
     delta: float,
     cx0: int,
     cy0: int,
-) -> tuple[I16, F64, NDArray[np.uint32], int, int]:  # pragma: no cover - compiled
+    kernel: int,
+) -> Window:  # pragma: no cover - compiled
     """A dense index of a particle's full cells around a laser origin, for fast lookups.
 
-    Returns ``(code, means, masks, wx0, wy0)``: ``code[wy, wx]`` is -1 for a cell below
-    gmapping's fullness threshold (or unknown), -2 exactly at it, else an index into
-    ``means`` (K, 4) (the cell's mean hit point x, y, then its mask as a float) and
-    ``masks`` (K,): bit
-    ``(ox + 2) * 5 + (oy + 2)`` is set when the cell at offset ``(ox, oy)`` (each in -2..2)
-    is below the threshold (free or unknown). The window's cell (0, 0) is table cell ``(wx0, wy0)``.
+    Returns ``(code, means, wx0, wy0, near, n)`` over an ``n x n`` window whose cell (0, 0) is
+    table cell ``(wx0, wy0)``; cell ``(wx, wy)`` is entry ``wy * n + wx`` of the flat arrays.
+    ``code`` is -1 for a cell below gmapping's fullness threshold (or unknown), -2 exactly
+    at it, else the row of the cell's mean hit point ``(x, y)`` in ``means``. With
+    ``kernel`` 1, ``near`` holds each cell's 3 x 3 neighbourhood as bits ``(ox + 1) * 3 +
+    (oy + 1)`` (offsets -1..1): bits 0-8 the neighbours that are full, bits 16-24 those
+    that are not below the threshold (full or exactly at it); other kernels leave it 0.
     """
     # capped so that every code fits an int16 (lookups beyond the window use the patches)
     half = min(math.ceil(reach / delta) + _WIN_MARGIN, _WIN_HALF_MAX)
     wx0 = math.floor(lx / delta) - cx0 - half
     wy0 = math.floor(ly / delta) - cy0 - half
     n = 2 * half + 1
-    code = np.full((n, n), -1, np.int16)
+    code = np.full(n * n, -1, np.int16)
     cap = 256
     means = np.empty((cap, 2))
-    where = np.empty((cap, 2), np.int64)
+    where = np.empty(cap, np.int64)
     count = 0
     ph, pw = table.shape
     px0 = max(0, wx0 >> PATCH_SHIFT)
@@ -91,53 +103,47 @@ def _window(
                         continue
                     h = hits[pid, kk]
                     if h / v == FULLNESS:
-                        code[wy, wx] = -2  # neither full nor below the threshold
+                        code[wy * n + wx] = -2  # neither full nor below the threshold
                     elif h / v > FULLNESS:
                         if count == cap:
                             grown = np.empty((2 * cap, 2))
                             grown[:count] = means[:count]
                             means = grown
-                            grown_w = np.empty((2 * cap, 2), np.int64)
+                            grown_w = np.empty(2 * cap, np.int64)
                             grown_w[:count] = where[:count]
                             where = grown_w
                             cap *= 2
                         means[count, 0] = accx[pid, kk] / h
                         means[count, 1] = accy[pid, kk] / h
-                        where[count, 0] = wx
-                        where[count, 1] = wy
-                        code[wy, wx] = np.int16(count)
+                        where[count] = wy * n + wx
+                        code[wy * n + wx] = np.int16(count)
                         count += 1
-    masks = np.zeros(count, np.uint32)
-    for c in range(count):
-        wx = where[c, 0]
-        wy = where[c, 1]
-        m = np.uint32(0)
-        for ox in range(-2, 3):
-            for oy in range(-2, 3):
-                nx = wx + ox
-                ny = wy + oy
-                if 0 <= nx < n and 0 <= ny < n:
-                    below = code[ny, nx] == -1
-                else:
-                    below = _outside(table, accx, accy, hits, visits, nx + wx0, ny + wy0)[0] == 0
-                if below:
-                    m |= np.uint32(1) << np.uint32((ox + 2) * 5 + (oy + 2))
-        masks[c] = m
-    # the fast path reads a full cell's mean and mask from one 32-byte record
-    rec = np.zeros((count + 1, 4))  # row ``count``: no cell (mask 0)
-    for c in range(count):
-        rec[c, 0] = means[c, 0]
-        rec[c, 1] = means[c, 1]
-        rec[c, 2] = masks[c]
-        rec[c, 3] = 0.0
-    return code, rec, masks, wx0, wy0
+    near = np.zeros(n * n, np.uint32)
+    if kernel == 1:
+        for w in range(n * n):
+            q = code[w]
+            if q == -1:
+                continue
+            bits = np.uint32(0x10000) if q == -2 else np.uint32(0x10001)
+            wy = w // n
+            wx = w - wy * n
+            # the cell is neighbour (ox, oy) of the cell at (wx - ox, wy - oy)
+            for ox in range(-1, 2):
+                tx = wx - ox
+                if tx < 0 or tx >= n:
+                    continue
+                for oy in range(-1, 2):
+                    ty = wy - oy
+                    if 0 <= ty < n:
+                        near[ty * n + tx] |= bits << np.uint32((ox + 1) * 3 + oy + 1)
+    return code, means[:count], wx0, wy0, near, n
 
 
 @njit(cache=True)
 def _outside(
     table: I32, accx: F64, accy: F64, hits: I32, visits: I32, ix: int, iy: int
 ) -> tuple[int, float, float]:  # pragma: no cover - compiled
-    """(class, mean x, mean y) of a table cell outside the window (as :func:`_window`)."""
+    """(class, mean x, mean y) of a table cell outside the window (1 full, 2 at, 0 below)."""
     v, mx, my = cell(table, accx, accy, hits, visits, ix, iy)
     if v > FULLNESS:
         return 1, mx, my
@@ -163,13 +169,9 @@ def _used_beams(ranges: F64, usable: float, lskip: int) -> NDArray[np.int64]:  #
     return out[:n]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # no zero-division checks: divisors are not 0
 def _match(
-    code: I16,
-    means: F64,
-    masks: NDArray[np.uint32],
-    wx0: int,
-    wy0: int,
+    win: Window,
     table: I32,
     accx: F64,
     accy: F64,
@@ -194,8 +196,13 @@ def _match(
     """gmapping's score (and likelihoodAndScore): returns (score, log likelihood, matched).
 
     ``beams``: the used beams (:func:`_used_beams`); ``bc``, ``bs``: cos and sin of the beam
-    angles (computed once per scan); the window (:func:`_window`) answers the lookups it
-    covers (branch-free when the whole kernel window is inside it), the patches the others.
+    angles (computed once per scan). Per beam, the candidates are the full cells of the
+    kernel window around the end point's cell whose cell one ``delta * sqrt(2)`` step back
+    along the beam from the candidate is below the threshold; the first strictly nearest
+    mean wins. With ``kernel`` 1 and the window around the end point inside the window
+    (:func:`_window`), the candidates are the set bits of ``full(end cell) & ~notbelow(free
+    cell)`` of the ``near`` masks, visited in the loops' order; else the loops read the
+    window's codes and, beyond it, the patches.
     """
     c = math.cos(th)
     s = math.sin(th)
@@ -207,8 +214,8 @@ def _match(
     free_delta = delta * FREE_RATIO
     inv_delta = 1.0 / delta
     no_hit = _NULL_LIKELIHOOD / lsigma
-    wh, ww = code.shape
-    none = means.shape[0] - 1
+    code, means, wx0, wy0, near, n = win
+    fast = kernel == 1
     total = 0.0
     like = 0.0
     matched = 0
@@ -230,22 +237,24 @@ def _match(
         by = 0.0
         wcx = ihx - wx0
         wcy = ihy - wy0
-        if kernel <= wcx < ww - kernel and kernel <= wcy < wh - kernel:
-            # branch-free over the kernel window: a cell that is not full reads record
-            # ``none`` (mask 0); the first strictly nearest valid mean wins, as in the loops
-            free_bit = (ifx + 2) * 5 + (ify + 2)
+        if fast and 3 <= wcx < n - 3 and 3 <= wcy < n - 3:
+            # |ifx|, |ify| <= 2: both 3 x 3 neighbourhoods are inside the window
+            t = wcy * n + wcx
+            valid = near[t] & ~(near[t + ify * n + ifx] >> np.uint32(16)) & np.uint32(0x1FF)
             best_d = math.inf
-            for xx in range(-kernel, kernel + 1):
-                for yy in range(-kernel, kernel + 1):
-                    q = code[wcy + yy, wcx + xx]
-                    q = q if q >= 0 else none
-                    mux = hx - means[q, 0]
-                    muy = hy - means[q, 1]
-                    d = mux * mux + muy * muy
-                    take = ((np.int64(means[q, 2]) >> free_bit) & 1 != 0) & (d < best_d)
-                    best_d = d if take else best_d
-                    bx = mux if take else bx
-                    by = muy if take else by
+            while valid != 0:
+                b = _lowest_bit(valid)
+                valid &= valid - np.uint32(1)
+                ox = b // 3 - 1
+                oy = b - (ox + 1) * 3 - 1
+                q = code[t + oy * n + ox]
+                mux = hx - means[q, 0]
+                muy = hy - means[q, 1]
+                d = mux * mux + muy * muy
+                take = d < best_d
+                best_d = d if take else best_d
+                bx = mux if take else bx
+                by = muy if take else by
             found = best_d < math.inf
         else:
             for xx in range(-kernel, kernel + 1):
@@ -254,9 +263,9 @@ def _match(
                     pry = ihy + yy
                     wx = prx - wx0
                     wy = pry - wy0
-                    if 0 <= wx < ww and 0 <= wy < wh:
-                        q = code[wy, wx]
-                        if q < 0 or (masks[q] >> ((ifx + 2) * 5 + (ify + 2))) & 1 == 0:
+                    if 0 <= wx < n and 0 <= wy < n:
+                        q = code[wy * n + wx]
+                        if q < 0:
                             continue
                         mx = means[q, 0]
                         my = means[q, 1]
@@ -264,9 +273,13 @@ def _match(
                         c1, mx, my = _outside(table, accx, accy, hits, visits, prx, pry)
                         if c1 != 1:
                             continue
-                        c2 = _outside(table, accx, accy, hits, visits, prx + ifx, pry + ify)[0]
-                        if c2 != 0:
+                    wx += ifx
+                    wy += ify
+                    if 0 <= wx < n and 0 <= wy < n:
+                        if code[wy * n + wx] != -1:
                             continue
+                    elif _outside(table, accx, accy, hits, visits, prx + ifx, pry + ify)[0] != 0:
+                        continue
                     mux = hx - mx
                     muy = hy - my
                     if not found or mux * mux + muy * muy < bx * bx + by * by:
@@ -330,11 +343,9 @@ def likelihood_and_score(
 ) -> tuple[float, float, int]:  # pragma: no cover - compiled
     """gmapping's ``likelihoodAndScore``: (score, log likelihood, matched beams)."""
     lx, ly, _ = laser_origin(pose, laser)
-    code, means, masks, wx0, wy0 = _window(
-        table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0
-    )
+    win = _window(table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0, kernel)
     return _match(
-        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, pose[0], pose[1],
+        win, table, accx, accy, hits, visits, pose[0], pose[1],
         pose[2], ranges, _used_beams(ranges, usable, lskip), np.cos(angles), np.sin(angles),
         laser, sigma, lsigma, delta, cx0, cy0, kernel, True,
     )  # fmt: skip
@@ -342,11 +353,7 @@ def likelihood_and_score(
 
 @njit(cache=True)
 def _optimize(
-    code: I16,
-    means: F64,
-    masks: NDArray[np.uint32],
-    wx0: int,
-    wy0: int,
+    win: Window,
     table: I32,
     accx: F64,
     accy: F64,
@@ -369,7 +376,7 @@ def _optimize(
 ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
     cx, cy, ct = init[0], init[1], init[2]
     current = _match(
-        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, cx, cy, ct, ranges,
+        win, table, accx, accy, hits, visits, cx, cy, ct, ranges,
         beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False,
     )[0]  # fmt: skip
     # poses scored so far: a move back onto one of them (bit for bit, as x + d - d often is)
@@ -409,7 +416,7 @@ def _optimize(
                 sc = seen[k, 3]
             else:
                 sc = _match(
-                    code, means, masks, wx0, wy0, table, accx, accy, hits, visits, x, y, t,
+                    win, table, accx, accy, hits, visits, x, y, t,
                     ranges, beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False,
                 )[0]  # fmt: skip
                 if n_seen < _SEEN:
@@ -454,11 +461,9 @@ def optimize(
     without improvement.
     """
     lx, ly, _ = laser_origin(init, laser)
-    code, means, masks, wx0, wy0 = _window(
-        table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0
-    )
+    win = _window(table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0, kernel)
     return _optimize(
-        code, means, masks, wx0, wy0, table, accx, accy, hits, visits, init, ranges,
+        win, table, accx, accy, hits, visits, init, ranges,
         _used_beams(ranges, usable, lskip), np.cos(angles), np.sin(angles), laser, sigma, delta,
         cx0, cy0, kernel, lstep, astep, iterations,
     )  # fmt: skip
@@ -505,11 +510,9 @@ def scan_match_all(
     for p in prange(poses.shape[0]):  # particles are independent: deterministic
         table = tables[p]
         lx, ly, _ = laser_origin(poses[p], laser)
-        code, means, masks, wx0, wy0 = _window(
-            table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0
-        )
+        win = _window(table, accx, accy, hits, visits, lx, ly, usable, delta, cx0, cy0, kernel)
         x, y, t, best = _optimize(
-            code, means, masks, wx0, wy0, table, accx, accy, hits, visits, poses[p],
+            win, table, accx, accy, hits, visits, poses[p],
             ranges, beams, bc, bs, laser, sigma, delta, cx0, cy0, kernel, lstep, astep,
             iterations,
         )  # fmt: skip
@@ -523,7 +526,7 @@ def scan_match_all(
             out_poses[p, 2] = poses[p, 2]
         out_scores[p] = best
         _, like, _ = _match(
-            code, means, masks, wx0, wy0, table, accx, accy, hits, visits,
+            win, table, accx, accy, hits, visits,
             out_poses[p, 0], out_poses[p, 1], out_poses[p, 2], ranges, beams, bc, bs, laser,
             sigma, lsigma, delta, cx0, cy0, kernel, True,
         )  # fmt: skip
