@@ -2,11 +2,21 @@
 
 Run: ``python bench/bench_viewer.py [--duration 8] [--repeats 2] [--scenarios car drone]``.
 
-Live: ``visnav run SCENARIO --duration D`` alternately without and with ``--view`` (the web
-viewer serving on 127.0.0.1, no page open), each ``--repeats`` times in this one run; the
-real-time factor is the run's own (``summary.json``: simulated / wall seconds of the
-stepping loop, start-up excluded). Reported: the medians and the ratio view / no view
-(goal >= 0.9). The car runs without SLAM so the runs stay short on a loaded machine.
+Live: ``visnav run SCENARIO --duration D`` alternately without ``--view``, with ``--view``
+(the web viewer serving on 127.0.0.1, no page open) and with ``--view`` and a headless
+Chromium page open on the viewer (``/usr/bin/chromium``, software rendering through
+SwiftShader, sharing the machine's cores with the run: ``--no-page`` or no Chromium
+skips that case), each ``--repeats`` times in this one run; the real-time factor is the
+run's own (``summary.json``: simulated / wall seconds of the stepping loop, start-up
+excluded). Reported: the medians and the ratios to the runs without the viewer (goals:
+>= 0.9 serving with no page, >= 0.7 with a page), and the run process's CPU seconds per
+simulated second (user + system of the whole run, start-up included; on a loaded
+machine the wall-clock real-time factor swings with the load, the CPU time much less),
+and the CPU seconds per simulated second of the viewer's worker thread (``run.log``).
+The car runs without SLAM so the runs stay short on a loaded machine.
+
+The viewer's ports are fixed (9090 page, 9876 gRPC): another viewer serving there (a
+second ``visnav run --view``) makes the ``--view`` runs fail with that message.
 
 Bag: a car run with ``--record-images`` is played into the viewer's path (``DisplaySink``:
 display rate, JPEG, worker thread) with the web viewer serving; reported: wall seconds
@@ -21,12 +31,14 @@ import argparse
 import json
 import os
 import random
+import re
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 __all__ = ["main"]
 
@@ -36,19 +48,116 @@ def _env() -> dict[str, str]:
     return {**os.environ, "VISNAV_DOMAIN": str(random.SystemRandom().randint(20_000, 60_000))}
 
 
-def _run(scenario: str, duration: float, out: Path, *, view: bool) -> float:
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_FLAGS = (  # as tests/viz/_cdp.py starts it for the screenshot tests
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+    "--use-gl=angle",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--window-size=1280,800",
+    "--remote-debugging-address=127.0.0.1",
+    "--remote-debugging-port=0",  # keeps the headless browser open on the page
+)
+
+CASES = ("none", "view", "page")
+"""No viewer; ``--view`` serving with no page; ``--view`` with a Chromium page open."""
+
+
+class RunResult(NamedTuple):
+    """One run: its real-time factor and the run process's CPU seconds per simulated second."""
+
+    rtf: float
+    cpu_per_sim_s: float
+    worker_cpu_per_sim_s: float | None
+    """The viewer's worker thread (``run.log``'s "viewer: worker CPU" line)."""
+
+
+def _open_page(url: str, tmp: Path) -> subprocess.Popen[bytes]:
+    profile = tmp / f"chromium-{time.monotonic_ns()}"
+    profile.mkdir()
+    log = (tmp / "chromium.log").open("ab")
+    return subprocess.Popen(
+        [str(CHROMIUM), *CHROMIUM_FLAGS, f"--user-data-dir={profile}", url],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+
+
+def _run(scenario: str, duration: float, out: Path, *, case: str, tmp: Path) -> RunResult:
     cmd = ["visnav", "run", scenario, "--duration", str(duration), "--out", str(out), "--quiet"]
     if scenario == "car":
         cmd.append("--no-slam")
-    if view:
+    if case != "none":
         cmd.append("--view")
-    subprocess.run(
-        cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=_env()
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=_env(), cwd=tmp
     )
+    assert proc.stderr is not None
+    page: subprocess.Popen[bytes] | None = None
+    err: list[bytes] = []
+    try:
+        for line in proc.stderr:  # "viewer: URL" comes before the simulation starts
+            err.append(line)
+            text = line.decode(errors="replace").strip()
+            if case == "page" and page is None and text.startswith("viewer: http"):
+                page = _open_page(text.split(" ", 1)[1], tmp)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+    finally:
+        if page is not None:
+            page.terminate()
+            page.wait(timeout=30)
+    if proc.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{b''.join(err[-20:]).decode(errors='replace')}")
+    if case == "page" and page is None:
+        sys.exit(f"{out}: the run printed no viewer address: no page was opened")
     summary = json.loads((out / "summary.json").read_text())
-    if view and (out / "run.rrd").exists():
+    if case != "none" and (out / "run.rrd").exists():
         sys.exit(f"{out}: --view wrote run.rrd")
-    return float(summary["real_time_factor"])
+    cpu = usage.ru_utime + usage.ru_stime
+    sim_s = max(float(summary["sim_duration_s"]), 1e-9)
+    found = _WORKER_CPU.search(log.read_text()) if (log := out / "run.log").is_file() else None
+    worker = float(found.group(1)) / sim_s if found else None
+    return RunResult(float(summary["real_time_factor"]), cpu / sim_s, worker)
+
+
+_WORKER_CPU = re.compile(r"viewer: worker CPU ([0-9.]+) s")
+
+
+def _live(args: argparse.Namespace, scenario: str, tmp: Path) -> None:
+    cases = [c for c in CASES if c != "page" or (not args.no_page and CHROMIUM.exists())]
+    runs: dict[str, list[RunResult]] = {c: [] for c in cases}
+    for i in range(args.repeats):
+        for case in cases:  # interleaved: every case sees the same machine load
+            out = tmp / f"{scenario}-{i}-{case}"
+            runs[case].append(_run(scenario, args.duration, out, case=case, tmp=tmp))
+    rtf = {c: statistics.median(r.rtf for r in runs[c]) for c in cases}
+    cpu = {c: statistics.median(r.cpu_per_sim_s for r in runs[c]) for c in cases}
+    label = {"none": "without view", "view": "with --view", "page": "with --view + page"}
+    for case in cases:
+        each = ", ".join(f"{r.rtf:.3f}" for r in runs[case])
+        line = (
+            f"{scenario} {args.duration:g} s {label[case]:>19}: RTF {rtf[case]:.3f} "
+            f"(runs {each}), CPU {cpu[case]:.2f} s per sim s"
+        )
+        workers = [r.worker_cpu_per_sim_s for r in runs[case] if r.worker_cpu_per_sim_s is not None]
+        if workers:
+            line += f" (viewer worker {statistics.median(workers):.3f})"
+        if case != "none":
+            goal = 0.9 if case == "view" else 0.7
+            line += (
+                f"; ratio RTF {rtf[case] / rtf['none']:.2f} (goal >= {goal}), "
+                f"CPU x{cpu[case] / cpu['none']:.2f}"
+            )
+        print(line, flush=True)
 
 
 def _bag_playback(tmp: Path, duration: float) -> tuple[float, float, float]:
@@ -93,22 +202,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--scenarios", nargs="*", default=["car", "drone"])
     parser.add_argument("--no-bag", action="store_true")
+    parser.add_argument("--no-page", action="store_true", help="no run with a Chromium page")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_viewer_") as name:
         tmp = Path(name)
         for scenario in args.scenarios:
-            rtf: dict[bool, list[float]] = {False: [], True: []}
-            for i in range(args.repeats):
-                for view in (False, True):
-                    out = tmp / f"{scenario}-{i}-{int(view)}"
-                    rtf[view].append(_run(scenario, args.duration, out, view=view))
-            base, viewed = statistics.median(rtf[False]), statistics.median(rtf[True])
-            print(
-                f"{scenario} {args.duration:g} s: RTF without view {base:.3f} "
-                f"(runs {', '.join(f'{v:.3f}' for v in rtf[False])}), with --view {viewed:.3f} "
-                f"(runs {', '.join(f'{v:.3f}' for v in rtf[True])}); ratio {viewed / base:.2f} "
-                "(goal >= 0.9)"
-            )
+            _live(args, scenario, tmp)
         if not args.no_bag:
             per_s, latency, sim_s = _bag_playback(tmp, args.duration)
             print(

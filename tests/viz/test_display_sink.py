@@ -33,10 +33,12 @@ class _Recorder:
 
     def log(self, topic: str, msg: Any, stamp_ns: int | None = None) -> bool:
         time.sleep(self.delay_s)
-        header = getattr(msg, "header", None)
-        self.logged.append(
-            (topic, header.stamp.sec * 10**9 + header.stamp.nanosec if header else -1)
-        )
+        # a TFMessage: one entry per transform (the worker merges a batch's /tf messages)
+        for item in getattr(msg, "transforms", None) or [msg]:
+            header = getattr(item, "header", None)
+            self.logged.append(
+                (topic, header.stamp.sec * 10**9 + header.stamp.nanosec if header else -1)
+            )
         self.threads.add(threading.current_thread().name)
         return True
 

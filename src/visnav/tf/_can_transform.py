@@ -25,6 +25,8 @@ class CanTransformMixin:
 
     _lock: threading.Lock
     _cond: threading.Condition
+    _waiters: int = 0
+    """Threads in :meth:`_wait_for` (changed with the lock held)."""
 
     def _lookup(self, target: str, source: str, t: int) -> tuple[Pose7, int]:
         raise NotImplementedError
@@ -178,6 +180,10 @@ class CanTransformMixin:
                     remaining = deadline - _time.monotonic()
                     if remaining <= 0.0:
                         return False, str(exc)
-                    self._cond.wait(remaining)
+                    self._waiters += 1  # set_transform notifies only while someone waits
+                    try:
+                        self._cond.wait(remaining)
+                    finally:
+                        self._waiters -= 1
                 else:
                     return True, ""

@@ -43,6 +43,7 @@ import difflib
 import logging
 import math
 import threading
+from math import isfinite
 from typing import Any
 
 import numpy as np
@@ -220,7 +221,9 @@ class Buffer(CanTransformMixin):
                 f'"{child}": a frame cannot be its own parent',
                 strict=strict,
             )
-        if not all(math.isfinite(v) for v in (*values, qw)):
+        # one check for the common case: a NaN or an infinity makes the sum non-finite
+        # (a sum that overflows with finite values is checked value by value)
+        if not isfinite(sum(values) + qw) and not all(isfinite(v) for v in (*values, qw)):
             return self._refuse(
                 "TF_NAN_INPUT",
                 f'transform for child "{child}" from authority "{authority}" has a non-finite '
@@ -276,9 +279,13 @@ class Buffer(CanTransformMixin):
                 )
                 return False
             cache.authority = authority
-            self._known.setdefault(child, None)
-            self._known.setdefault(parent, None)
-            self._cond.notify_all()
+            known = self._known
+            if child not in known:
+                known[child] = None
+            if parent not in known:
+                known[parent] = None
+            if self._waiters:
+                self._cond.notify_all()
         return True
 
     def clear(self) -> None:

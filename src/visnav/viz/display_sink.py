@@ -11,6 +11,11 @@ thread that steps the simulation, so :meth:`DisplaySink.log` only decides and qu
   dropped (TF is never dropped: placing everything else needs it);
 * **worker thread**: conversion (JPEG encoding, cloud decimation, TF placement) and
   Rerun's logging run there. OpenCV's encoder and Rerun's Rust side release the GIL.
+  The worker wakes at most ``batch_hz`` times a second and takes everything queued at
+  once; the ``/tf`` messages of one batch are merged into one (inserted together, the
+  data waiting for TF retried and the TF frames re-logged once per batch, not per
+  message): a 100 Hz ``/tf`` then costs the simulation's thread a queue append per
+  message and the worker ~20 wake-ups a second instead of 100+.
 
 Counts of what was skipped are in :meth:`DisplaySink.stats` (``skipped``).
 """
@@ -26,9 +31,10 @@ from typing import Any
 
 from visnav.description.worldmodel import WorldDescription
 from visnav.msgs.time import time_to_ns
+from visnav.msgs.types import TFMessage
 from visnav.viz.sink import RerunSink
 
-__all__ = ["DEPTH", "DISPLAY_RATES_HZ", "DisplaySink"]
+__all__ = ["BATCH_HZ", "DEPTH", "DISPLAY_RATES_HZ", "DisplaySink"]
 
 _LOG = logging.getLogger("visnav.viz")
 
@@ -49,6 +55,11 @@ DISPLAY_RATES_HZ: dict[str, float] = {
     DEPTH: 2.0,
 }
 """Messages per second of stamp time shown per topic, by type (others: all)."""
+
+BATCH_HZ = 20.0
+"""How often the worker wakes up at most (batches per wall-clock second)."""
+
+_TF_TYPE = "tf2_msgs/msg/TFMessage"
 
 _BULKY = frozenset(DISPLAY_RATES_HZ)
 """Types that may be skipped (display rate, full queue); TF, markers, strings never are."""
@@ -74,6 +85,8 @@ class DisplaySink:
             (see :func:`visnav.viz.scene.world_from_graph`).
         block: a full queue makes :meth:`log` wait instead of dropping (a bag: nothing
             is lost, reading waits for the viewer).
+        batch_hz: the worker's wake-ups per second at most (see the module notes; 0:
+            one per message, as before batching).
     """
 
     def __init__(
@@ -84,8 +97,10 @@ class DisplaySink:
         max_pending: int = 64,
         world_loader: Callable[[], WorldDescription | None] | None = None,
         block: bool = False,
+        batch_hz: float = BATCH_HZ,
     ) -> None:
         self._block = block
+        self._batch_s = 1.0 / batch_hz if batch_hz > 0 else 0.0
         self.sink = sink
         self._periods = {
             k: int(1e9 / v)
@@ -94,7 +109,7 @@ class DisplaySink:
         }
         self._max_pending = max_pending
         self._last_kept: dict[str, int] = {}
-        self._queue: deque[tuple[str, Any, int | None, bool, float]] = deque()
+        self._queue: deque[_Item] = deque()
         self._pending = 0
         self._cond = threading.Condition()
         self._stop = False
@@ -106,6 +121,10 @@ class DisplaySink:
         """The longest time a message waited in the queue plus its logging (s)."""
         self.world_s = 0.0
         """Wall seconds the worker spent loading and logging the world."""
+        self.worker_cpu_s = 0.0
+        """CPU seconds of the worker thread (what the viewer takes from the process)."""
+        self.batches = 0
+        """Times the worker woke up and logged what was queued."""
         self._thread = threading.Thread(target=self._work, name="visnav-viewer", daemon=True)
         self._thread.start()
         self._world_thread: threading.Thread | None = None
@@ -159,7 +178,8 @@ class DisplaySink:
                 if t is not None:
                     self._last_kept[topic] = t
             self._queue.append((topic, msg, stamp_ns, bulky, time.perf_counter()))
-            self._cond.notify()
+            if len(self._queue) == 1 or self._block:  # else the worker is awake already
+                self._cond.notify_all()
         return True
 
     def log_error(self, topic: str, type_name: str, reason: str) -> None:
@@ -173,7 +193,12 @@ class DisplaySink:
     def flush(self, timeout_s: float = 30.0) -> bool:
         """Wait until the worker has logged everything queued; False on timeout."""
         with self._cond:
-            return self._cond.wait_for(lambda: not self._queue and not self._busy, timeout_s)
+            self._flushing += 1
+            self._cond.notify_all()
+            try:
+                return self._cond.wait_for(lambda: not self._queue and not self._busy, timeout_s)
+            finally:
+                self._flushing -= 1
 
     def poll(self) -> None:
         """Give up on data that waited too long for TF (see :meth:`RerunSink.poll`)."""
@@ -198,6 +223,7 @@ class DisplaySink:
         return out
 
     _busy = False
+    _flushing = 0
 
     def _load_world(self, loader: Callable[[], WorldDescription | None]) -> None:
         start = time.perf_counter()
@@ -210,25 +236,80 @@ class DisplaySink:
         self.world_s = time.perf_counter() - start
 
     def _work(self) -> None:
+        last = -1e9
         while True:
             with self._cond:
                 self._cond.wait_for(lambda: bool(self._queue) or self._stop)
                 if not self._queue:
                     self._cond.notify_all()
                     return
-                topic, msg, stamp_ns, bulky, queued = self._queue.popleft()
+                # a batch per 1 / batch_hz at most: later messages join this one
+                due = last + self._batch_s - time.perf_counter()
+                if due > 0 and not self._hurry():
+                    self._cond.wait_for(self._hurry, due)
+                batch = list(self._queue)
+                self._queue.clear()
                 self._busy = True
-            start = time.perf_counter()
-            try:
-                self.sink.log(topic, msg, stamp_ns)
-            except Exception:  # noqa: BLE001 - the worker survives; the sink counts bad data
-                _LOG.exception("viewer: logging a message of %s failed", topic)
-            finally:
-                done = time.perf_counter()
-                self.busy_s[topic] = self.busy_s.get(topic, 0.0) + done - start
-                self.max_latency_s = max(self.max_latency_s, done - queued)
+            last = time.perf_counter()
+            cpu = time.thread_time()
+            for item in _merge_tf(batch):
+                self._show(item)
+            self.worker_cpu_s += time.thread_time() - cpu
+            self.batches += 1
+            with self._cond:
+                self._busy = False
+                self._cond.notify_all()
+
+    def _hurry(self) -> bool:
+        """No batching wait: stopping, flushing, or a full queue (``block``: reading waits)."""
+        return self._stop or self._flushing > 0 or self._pending >= self._max_pending
+
+    def _show(self, item: _Item) -> None:
+        topic, msg, stamp_ns, bulky, queued = item
+        start = time.perf_counter()
+        try:
+            self.sink.log(topic, msg, stamp_ns)
+        except Exception:  # noqa: BLE001 - the worker survives; the sink counts bad data
+            _LOG.exception("viewer: logging a message of %s failed", topic)
+        finally:
+            done = time.perf_counter()
+            self.busy_s[topic] = self.busy_s.get(topic, 0.0) + done - start
+            self.max_latency_s = max(self.max_latency_s, done - queued)
+            if bulky:
                 with self._cond:
-                    self._busy = False
-                    if bulky:
-                        self._pending -= 1
+                    self._pending -= 1
                     self._cond.notify_all()
+
+
+_Item = tuple[str, Any, int | None, bool, float]
+"""A queued message: (topic, message, stamp_ns, bulky, wall time queued)."""
+
+
+def _merge_tf(batch: list[_Item]) -> list[_Item]:
+    """The batch with each topic's ``/tf`` messages merged into one (at the first's place).
+
+    Only dynamic TF (not ``*tf_static``) is merged: its transforms are inserted in
+    arrival order, as if they had come one message at a time. The merged message keeps
+    the oldest queue time (the latency counts from the first).
+    """
+    merged: dict[str, list[Any]] = {}
+    out: list[_Item] = []
+    for item in batch:
+        topic, msg = item[0], item[1]
+        if (
+            getattr(msg, "__msgtype__", "") != _TF_TYPE
+            or topic.rstrip("/").endswith("tf_static")
+            or item[2] is not None
+        ):
+            out.append(item)
+            continue
+        transforms = merged.get(topic)
+        if transforms is None:
+            merged[topic] = transforms = list(msg.transforms)
+            out.append((topic, transforms, None, item[3], item[4]))
+        else:
+            transforms.extend(msg.transforms)
+    return [
+        (i[0], TFMessage(transforms=i[1]), None, i[3], i[4]) if isinstance(i[1], list) else i
+        for i in out
+    ]

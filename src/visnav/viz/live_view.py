@@ -11,22 +11,29 @@ to disk but the viewer's log unless ``save`` is given.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Collection, Mapping
 from pathlib import Path
 from types import TracebackType
 
 from visnav.graph.context import Context
 from visnav.viz.display_sink import DisplaySink
+from visnav.viz.rviz_config import RvizConfig
 from visnav.viz.sink import RerunSink
 from visnav.viz.sources import LiveFeed
 from visnav.viz.viewer import DEFAULT_GRPC_PORT, DEFAULT_MEMORY_LIMIT, DEFAULT_WEB_PORT, open_viewer
 
 __all__ = ["RENDERED_TYPES", "LiveView"]
 
+_LOG = logging.getLogger("visnav.viz")
+
 RENDERED_TYPES = frozenset(
     {"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage", "sensor_msgs/msg/PointCloud2"}
 )
 """Types the simulator produces only for subscribers (cameras, depth clouds)."""
+
+_CLOUD = "sensor_msgs/msg/PointCloud2"
+_CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 
 
 class LiveView:
@@ -50,7 +57,12 @@ class LiveView:
             computes its cloud) only when it has a subscriber, so a viewer subscribing
             on its own would make a run render, and slow down, for display alone.
             ``visnav run --view`` sets it; ``visnav view`` and the ``viewer`` node show
-            every topic, as RViz does. Topics named in ``topics`` are always shown.
+            every topic, as RViz does. Topics named in ``topics`` are always shown, and
+            so are clouds of nodes that publish no ``CameraInfo`` (a planner's map such
+            as the drone's ``grid_map/occupancy_inflate``, computed, not rendered).
+        rviz: an RViz config (:mod:`visnav.viz.rviz_config`): fixed frame (unless
+            ``fixed_frame``), colours, TF axes; pass ``topics=rviz.topics`` to show only
+            its enabled displays.
     """
 
     def __init__(
@@ -69,6 +81,7 @@ class LiveView:
         world: bool = True,
         packages: Mapping[str, str] | None = None,
         sensors_in_use_only: bool = False,
+        rviz: RvizConfig | None = None,
     ) -> None:
         from visnav.viz.scene import world_from_graph  # noqa: PLC0415 - parameter client
 
@@ -86,6 +99,7 @@ class LiveView:
                 fixed_frame=fixed_frame,
                 max_points=max_points,
                 packages=packages,
+                rviz=rviz,
             )
             accept = self._in_use if sensors_in_use_only and topics is None else None
             self.feed = LiveFeed(rerun_sink, context, topics=topics, accept=accept)
@@ -103,6 +117,15 @@ class LiveView:
             return True
         me = self.feed.node.get_name()
         endpoints = self.feed.context.graph.endpoints(topic)
+        if type_name == _CLOUD:  # a camera's cloud is rendered; a planner's map is not
+            pubs = {e.node_fqn for e in endpoints if e.kind == "publisher"}
+            cameras = {
+                e.node_fqn
+                for e in self.feed.context.graph.endpoints()
+                if e.kind == "publisher" and e.type_name == _CAMERA_INFO
+            }
+            if pubs and not pubs & cameras:
+                return True  # e.g. the drone's grid_map/occupancy_inflate (RViz shows it)
         return any(e.kind == "subscription" and e.node_name != me for e in endpoints)
 
     @property
@@ -123,6 +146,12 @@ class LiveView:
         try:
             self.feed.close()
             self.sink.close()
+            _LOG.debug(
+                "viewer: worker CPU %.3f s in %d batches, messages received %d",
+                self.sink.worker_cpu_s,
+                self.sink.batches,
+                self.feed.received,
+            )
         finally:
             self.viewer.close()
 
