@@ -99,6 +99,14 @@ def test_a_short_drone_run_is_quiet(tmp_path: Path, domain: int) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
+def test_a_default_drone_run_is_quiet(tmp_path: Path, domain: int) -> None:
+    # `visnav run drone` as the acceptance names it: its default 60 s, every goal's lines
+    stderr = _visnav(["run", "drone", "--out", "run"], tmp_path, domain, timeout=1700)
+    _check_quiet(stderr)
+
+
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_launch_car_says_why_it_ended_and_writes_a_summary(tmp_path: Path, domain: int) -> None:
     stderr = _visnav(["launch", "car", "duration:=1.5"], tmp_path, domain)

@@ -3,9 +3,9 @@
 While the nodes start and while the simulation and the SLAM worker process run, the run
 exits 130 without a traceback, prints the summary and writes ``summary.json`` with
 ``"status": "interrupted"`` and what was measured so far (a SIGINT while the CLI's modules
-load exits 130 at once; one in the first tenths of a second, while the interpreter itself
-starts, is Python's own KeyboardInterrupt). A run refused before it starts leaves no
-output folder.
+load prints ``interrupted during start-up`` and exits 130: test_interrupt_signals.py, with
+SIGTERM and the other long-running verbs). A run refused before it starts leaves no output
+folder.
 """
 
 from __future__ import annotations

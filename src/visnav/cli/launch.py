@@ -8,7 +8,9 @@ import signal
 from dataclasses import replace
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
+from visnav.cli._signals import StartupInterrupted
 from visnav.launch.errors import LaunchArgError
 from visnav.logsetup import add_log_file, kernel_compilation_notice, remove_log_file
 from visnav.scenarios.run_control import (
@@ -16,6 +18,9 @@ from visnav.scenarios.run_control import (
     remove_refused_output,
     scenario_output_arg,
 )
+
+if TYPE_CHECKING:
+    from visnav.launch.description import LaunchDescription
 
 __all__ = ["add_arguments", "cmd_launch", "parse_packages"]
 
@@ -112,9 +117,19 @@ def parse_packages(items: list[str]) -> dict[str, str]:
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
-    """``launch``."""
+    """``launch``: a Ctrl-C before the nodes start is one line (nothing was started)."""
+    try:
+        prepared = _prepare(args)
+    except KeyboardInterrupt:
+        raise StartupInterrupted from None
+    if prepared is None:  # --print
+        return 0
+    return _launch(args, *prepared)
+
+
+def _prepare(args: argparse.Namespace) -> tuple[LaunchDescription, dict[str, str]] | None:
+    """Load the launch file (None: printed with ``--print``)."""
     from visnav.launch.loader import find_package_launch_file, load_launch, parse_launch_args
-    from visnav.launch.supervisor import Launcher
 
     launch_args = _late_options(args)
     packages = parse_packages(args.package)
@@ -138,12 +153,19 @@ def cmd_launch(args: argparse.Namespace) -> int:
         ]
     if args.print_only:
         print(description.dumps() if args.json else description.format())
-        return 0
+        return None
     from visnav.launch.sim_clock import follow_running_clock
 
     clock_note = follow_running_clock(description, domain=args.domain)
     if clock_note:
         description.notes.append(clock_note)
+    return description, given
+
+
+def _launch(args: argparse.Namespace, description: LaunchDescription, given: dict[str, str]) -> int:
+    """Run the launch until it ends, Ctrl-C or SIGTERM; write a scenario's status."""
+    from visnav.launch.supervisor import Launcher
+
     for note in description.notes:  # what the import mapped or left out: expected, not faults
         _LOG.info("%s", note)
     launcher = Launcher(
@@ -187,10 +209,11 @@ def cmd_launch(args: argparse.Namespace) -> int:
         if interrupted
         else launcher.end_reason or "every node ended"
     )
-    _LOG.info("launch ended: %s (exit code %d)", reason, 130 if interrupted else code)
+    code = 128 + interrupted[0] if interrupted else code  # 130 after Ctrl-C, 143 after SIGTERM
+    _LOG.info("launch ended: %s (exit code %d)", reason, code)
     if out_dir:
         status = "interrupted" if interrupted else "failed" if code else "completed"
         written = record_status(out_dir, status, reason=reason)
         if written is not None:
             _LOG.info("summary: %s (status %s)", written, status)
-    return 130 if interrupted else code
+    return code

@@ -5,17 +5,25 @@ error that reaches here prints as one line ``error: ...`` (exit 1): visnav's own
 errors as they are, those of the OS, codecs, PyYAML, OpenCV and the serializer
 translated by :func:`visnav.cli._errors.describe_error`; with ``--debug`` the
 traceback is shown too.
+
+Stop signals: SIGTERM is handled as Ctrl-C by every verb (:mod:`visnav.cli._signals`)
+and exits 143 where Ctrl-C exits 130. A Ctrl-C (or SIGTERM) while the verb's modules
+load, before the verb runs, prints one line, ``interrupted during start-up``, and exits
+130 (143): nothing has been written yet. This module imports nothing at its top but
+``sys``, so that the window in which Python itself would print a ``KeyboardInterrupt``
+traceback is only the interpreter's own start-up.
 """
 
 from __future__ import annotations
 
-import argparse
-import importlib
 import sys
-import traceback
-from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-from visnav.logsetup import configure_logging
+if TYPE_CHECKING:
+    import argparse
+    from collections.abc import Sequence
+
+    from visnav.cli._signals import TerminateAsInterrupt
 
 __all__ = ["build_parser", "main"]
 
@@ -57,6 +65,9 @@ VERBS: dict[str, tuple[str, str]] = {
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the full argument parser (verb modules add their own sub-parsers)."""
+    import argparse
+    import importlib
+
     parser = argparse.ArgumentParser(
         prog="visnav",
         description="visnav: ROS-style robot perception and navigation tools, no ROS install.",
@@ -75,6 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _verb_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
     """Build a parser that only imports the verb being run (fast startup)."""
+    import argparse
+    import importlib
+
     verb = next((a for a in argv if not a.startswith("-")), None)
     if verb not in VERBS:
         return build_parser()
@@ -90,29 +104,70 @@ def _verb_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``visnav`` command; return the exit code (130 after Ctrl-C, no traceback)."""
+    """Run the ``visnav`` command; return the exit code.
+
+    After Ctrl-C 130, after SIGTERM 143, with no traceback (see the module docstring).
+    """
+    stop: TerminateAsInterrupt | None = None
     try:
-        return _main(argv)
-    except KeyboardInterrupt:  # e.g. while the verb's modules load
-        return 130
+        from visnav.cli._signals import TerminateAsInterrupt
+
+        stop = TerminateAsInterrupt()
+        with stop.installed(), stop.watch_sigint():
+            try:
+                args = _parse(argv)
+            except BaseException as exc:  # the verb's modules were loading: nothing written
+                # (an interrupt inside a C extension's import can surface as an ImportError)
+                if not isinstance(exc, KeyboardInterrupt) and not stop.signals:
+                    raise
+                _say_startup_interrupted(stop)
+                return stop.exit_code(130)
+            return stop.exit_code(_call(args, stop))
+    except KeyboardInterrupt:  # before the handler was in place, or as the verb returned
+        if stop is None:
+            _say_startup_interrupted(stop)
+        return 130 if stop is None else stop.exit_code(130)
 
 
-def _main(argv: Sequence[str] | None) -> int:
+def _say_startup_interrupted(stop: TerminateAsInterrupt | None) -> None:
+    from visnav.cli._signals import STARTUP_INTERRUPTED
+
+    how = " (SIGTERM)" if stop is not None and stop.terminated else ""
+    print(f"{STARTUP_INTERRUPTED}{how}", file=sys.stderr)
+
+
+def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
+    """Load the verb's module, parse the arguments and set up the terminal's logging."""
+    from visnav.logsetup import configure_logging
+
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = _verb_parser(args_list)
     args = parser.parse_args(args_list)
     # [LEVEL] message on stderr; other libraries' INFO lines and Python warnings at debug
     configure_logging(debug=args.debug, stream=sys.stderr)
+    return args
+
+
+def _call(args: argparse.Namespace, stop: TerminateAsInterrupt) -> int:
+    """Run the verb: every error it raises becomes one line (exit 1)."""
     from visnav.cli._errors import describe_error
+    from visnav.cli._signals import StartupInterrupted
 
     try:
         code: int = args.func(args)
+    except StartupInterrupted:
+        _say_startup_interrupted(stop)
+        return 130
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
         return 0
     except Exception as exc:  # noqa: BLE001  (the one boundary: every error becomes one line)
+        if stop.signals and not args.debug:  # an interrupt a C extension turned into an error
+            return 130
         if args.debug:
+            import traceback
+
             traceback.print_exc()
         print(f"error: {describe_error(exc)}", file=sys.stderr)
         return 1

@@ -71,11 +71,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Run the scenario and print the summary table (exit 130 after Ctrl-C, 1 if failed)."""
-    with RunInterrupt().installed() as interrupt:  # Ctrl-C: stop, summarise, exit 130
+    """Run the scenario and print the summary table.
+
+    Exit code 1 if failed; after Ctrl-C 130, after SIGTERM 143 (the run is stopped and
+    summarised either way).
+    """
+    with RunInterrupt().installed() as interrupt:  # Ctrl-C, SIGTERM: stop, summarise
         summary = _run(args, interrupt)
     print(format_summary(summary))
-    return {"interrupted": 130, "failed": 1}.get(summary.get("status", ""), 0)
+    return {"interrupted": interrupt.exit_code, "failed": 1}.get(summary.get("status", ""), 0)
 
 
 def _run(args: argparse.Namespace, interrupt: RunInterrupt) -> dict[str, Any]:

@@ -1,13 +1,15 @@
 """How a scenario run ends: Ctrl-C, the run's status and the folder of a refused run.
 
-* :class:`RunInterrupt`: the SIGINT handler of ``visnav run``. The first Ctrl-C asks the
-  run to stop at the next simulation step; the run then stops its nodes, writes
-  ``summary.json`` with ``"status": "interrupted"`` and what was measured so far, and
-  the command prints the summary and exits 130. A second Ctrl-C stops at once
+* :class:`RunInterrupt`: the SIGINT and SIGTERM handler of ``visnav run``. The first
+  Ctrl-C (or SIGTERM: ``kill PID``, a CI timeout, ``docker stop``, systemd) asks the run
+  to stop at the next simulation step; the run then stops its nodes, closes the bag,
+  writes ``summary.json`` with ``"status": "interrupted"``, ``end_reason`` naming the
+  signal and what was measured so far, and the command prints the summary and exits
+  ``128 + signal`` (130 after Ctrl-C, 143 after SIGTERM). A second signal stops at once
   (``KeyboardInterrupt``); the summary is still written from what there is. This is
   ``ros2 launch``'s escalation: a first SIGINT is a request, not a kill.
 * :data:`STATUSES`: ``completed`` (the duration ran out or the task was done),
-  ``interrupted`` (Ctrl-C), ``failed`` (an error after the run started, or a required
+  ``interrupted`` (Ctrl-C or SIGTERM), ``failed`` (an error after the run started, or a required
   node exited; ``error`` says which).
 * :func:`remove_refused_output`: a run refused before it started (a bad argument, an
   unknown world) leaves no output folder behind, if the run made it.
@@ -44,17 +46,35 @@ STATUSES = ("completed", "interrupted", "failed")
 
 
 class RunInterrupt:
-    """Ctrl-C of a scenario run (see the module docstring).
+    """Ctrl-C (or SIGTERM) of a scenario run (see the module docstring).
 
     Attributes:
-        requested: True once a SIGINT arrived (or :meth:`request` was called).
-        count: SIGINTs received.
+        requested: True once a SIGINT or SIGTERM arrived (or :meth:`request` was called).
+        count: stop signals received.
+        signum: the first stop signal received (0: none, or :meth:`request` was called).
     """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    """The signals :meth:`installed` handles."""
 
     def __init__(self) -> None:
         self.requested = False
         self.count = 0
+        self.signum = 0
         self._targets: list[Any] = []
+
+    @property
+    def reason(self) -> str:
+        """How the run was stopped: ``SIGINT (Ctrl-C)``, ``SIGTERM`` or ``stop requested``."""
+        if not self.signum:
+            return "stop requested"
+        name = signal.Signals(self.signum).name
+        return f"{name} (Ctrl-C)" if self.signum == signal.SIGINT else name
+
+    @property
+    def exit_code(self) -> int:
+        """``128 + signal`` (130 after Ctrl-C, 143 after SIGTERM; 130 without a signal)."""
+        return 128 + (self.signum or int(signal.SIGINT))
 
     def __call__(self) -> bool:
         """The stop predicate for ``run_lockstep(..., until=)``: True once requested."""
@@ -72,24 +92,26 @@ class RunInterrupt:
         for target in self._targets:
             target.request_stop()
 
-    def _on_sigint(self, signum: int, frame: FrameType | None) -> None:
-        del signum, frame
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        del frame
         self.count += 1
-        if self.requested:  # the second Ctrl-C: stop now
+        if self.requested:  # the second Ctrl-C (or SIGTERM): stop now
             raise KeyboardInterrupt
+        self.signum = self.signum or int(signum)
         self.request()
 
     @contextlib.contextmanager
     def installed(self) -> Iterator[RunInterrupt]:
-        """Handle SIGINT with this object inside the block (main thread only; else as is)."""
+        """Handle SIGINT and SIGTERM with this object inside the block (main thread only)."""
         if threading.current_thread() is not threading.main_thread():
             yield self
             return
-        previous = signal.signal(signal.SIGINT, self._on_sigint)
+        previous = {sig: signal.signal(sig, self._on_signal) for sig in self.SIGNALS}
         try:
             yield self
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
 
 
 def remove_refused_output(out_dir: Path, *, existed: bool) -> None:

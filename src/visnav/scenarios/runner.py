@@ -276,8 +276,8 @@ def run_scenario(
         context: the graph context of the shared nodes (default: a new one, with the
             Zenoh transport so other processes see the run).
         progress: where the progress bar goes (None: no progress output).
-        interrupt: the run's Ctrl-C handler (:class:`RunInterrupt`, installed by the
-            caller): once it is requested the run stops at the next step and returns its
+        interrupt: the run's Ctrl-C and SIGTERM handler (:class:`RunInterrupt`, installed
+            by the caller): once it is requested the run stops at the next step and returns its
             summary with ``status`` ``interrupted``. Without one a KeyboardInterrupt
             still writes that summary, then goes on.
         log_file: write every log record of the run, DEBUG included, to ``run.log`` in
@@ -369,10 +369,18 @@ class _RunState:
     bag: Path | None = None
     refusal: BaseException | None = None
     late_failure: BaseException | None = None
+    ran_out: bool = False  # the simulation ended by itself (duration, task done)
 
     @property
     def interrupted(self) -> bool:
         return self.interrupt is not None and self.interrupt.requested
+
+    @property
+    def end_reason(self) -> str:
+        """Why an interrupted run ended: the signal (``SIGTERM``, ``SIGINT (Ctrl-C)``)."""
+        if self.interrupt is not None and self.interrupt.signum:
+            return self.interrupt.reason
+        return "KeyboardInterrupt"  # a library caller without a handler, or request()
 
 
 def _start(description: LaunchDescription, ctx: Context, state: _RunState) -> Launcher | None:
@@ -445,12 +453,13 @@ def _run(
         state.status = "interrupted"
     except Exception as exc:  # noqa: BLE001 - written into the summary, then raised
         state.status, state.error, failure = "failed", f"{type(exc).__name__}: {exc}", exc
-    if state.interrupted:
+    if state.interrupted and not state.ran_out:  # a signal in the wrap-up: still completed
         state.status = "interrupted"
     if state.status == "interrupted":
         _LOG.info(
-            "interrupted (Ctrl-C): stopping the nodes and writing the summary "
-            "(Ctrl-C again to stop at once)"
+            "interrupted (%s): stopping the nodes and writing the summary "
+            "(Ctrl-C again to stop at once)",
+            "Ctrl-C" if state.end_reason.startswith("SIGINT") else state.end_reason,
         )
     try:
         launcher.shutdown()  # the observer writes summary.json when it ends (if not yet)
@@ -524,6 +533,7 @@ def _loop(
                 wall = time.perf_counter() - state.wall0
                 bar.update(state.sim_s, state.sim_s / max(wall, 1e-9))
             if not more:
+                state.ran_out = True
                 break
     finally:
         state.sim_s = sim.sim_time_s - start_sim
@@ -568,6 +578,8 @@ def _write_summary(description: LaunchDescription, state: _RunState) -> dict[str
     }
     if state.error:
         summary["error"] = state.error
+    if state.status == "interrupted":  # as `visnav launch` of a scenario says it
+        summary["end_reason"] = state.end_reason
     if state.launch_file is not None:
         summary["launch_file"] = state.launch_file
     for key in ("scenario", "seed", "sim_duration_s", "status"):

@@ -635,7 +635,10 @@ def _main(argv: list[str]) -> int:
 
     With ``SLOTS_FD`` >= 0, frames may come in the shared :class:`FrameSlots` buffer.
     """
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    # Ctrl-C and SIGTERM (systemd signals every process of a service) are the parent's to
+    # handle: it stops this worker by closing the connection once the map is saved
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     import cv2  # noqa: PLC0415 - only the worker process goes single-threaded
 
     cv2.setNumThreads(1)
