@@ -334,6 +334,12 @@ _LOCAL_PLANNERS = {
     ),
 }
 _GLOBAL_PLANNERS = ("navfn/NavfnROS", "global_planner/GlobalPlanner")
+_NAVFN_WEIGHTS = {
+    "GlobalPlanner.neutral_cost": 50.0,
+    "GlobalPlanner.cost_factor": 0.8,
+    "GlobalPlanner.lethal_cost": 254,
+}
+"""navfn's ``setCostmap``: cost c < 253 -> 50 + 0.8 c, 253 / 254 blocked, unknown 253."""
 
 
 def _dwa(
@@ -381,20 +387,34 @@ def _move_base(node: RosNode, params: ParamServer, packages: Mapping[str, str]) 
     out["base_local_planner"] = _LOCAL_PLANNERS.get(local, local)
     # the ROS local planner as it is: no nav2 rotation shim in front of it
     out["use_rotation_shim"] = False
-    glob = private.pop("base_global_planner", None)
-    if glob is not None:
-        if str(glob) in _GLOBAL_PLANNERS:
-            _note(
-                params,
-                node,
-                f"base_global_planner {glob} runs as visnav's GlobalPlanner (global_planner's "
-                "Dijkstra on the costmap; parameters GlobalPlanner/*)",
-            )
-        else:
-            issues.append(
-                f"move_base {node.fqn}: base_global_planner {glob!r} is not available (visnav "
-                f"has global_planner/GlobalPlanner; navfn/NavfnROS maps onto it)"
-            )
+    # move_base's default global planner is navfn/NavfnROS (the TurtleBot3 files keep it)
+    glob = str(private.pop("base_global_planner", "navfn/NavfnROS"))
+    if glob == "navfn/NavfnROS":
+        # navfn's own cell weights (COST_NEUTRAL 50 + COST_FACTOR 0.8 x cost, inscribed and
+        # lethal cells blocked, unknown 253): the weight keeps growing up to the inscribed
+        # band, so paths keep to the middle of a gap. global_planner's defaults (factor 3,
+        # capped at 252) are flat for every cost above 67, i.e. within ~0.5 m of a wall
+        # with the TurtleBot3's inflation, and their paths graze obstacles.
+        out.update(_NAVFN_WEIGHTS)
+        _note(
+            params,
+            node,
+            "base_global_planner navfn/NavfnROS runs as visnav's GlobalPlanner with navfn's "
+            "cell weights (neutral 50, factor 0.8, inscribed cells blocked; parameters "
+            "NavfnROS/*)",
+        )
+    elif glob == "global_planner/GlobalPlanner":
+        _note(
+            params,
+            node,
+            f"base_global_planner {glob} runs as visnav's GlobalPlanner (global_planner's "
+            "Dijkstra on the costmap; parameters GlobalPlanner/*)",
+        )
+    else:
+        issues.append(
+            f"move_base {node.fqn}: base_global_planner {glob!r} is not available (visnav "
+            f"has {' and '.join(_GLOBAL_PLANNERS)})"
+        )
     for key, value in private.items():
         head, _, tail = key.partition(".")
         if head in groups and tail:
