@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import json
 import os
 import shutil
@@ -177,21 +178,27 @@ def bench_cross_process(n: int = N_CALLS, block: int = 1) -> dict[str, tuple[flo
             payload = serialize(request)
             raw_key = f"{domain}/{_RAW_KEY}"
 
-            def raw_call() -> None:
-                # zenoh-python's own idiom: the default FIFO channel, read in this thread
-                try:
-                    reply = session.get(raw_key, payload=payload, timeout=10.0).recv()
-                except Exception as exc:
-                    msg = "raw get got no reply"
-                    raise RuntimeError(msg) from exc
-                if reply.ok is None:
-                    msg = "raw get got no reply"
-                    raise RuntimeError(msg)
-
-            return _paired(lambda: client.call(request, timeout_sec=10.0), raw_call, n, block)
+            return _paired(
+                lambda: client.call(request, timeout_sec=10.0),
+                functools.partial(_raw_get, session, raw_key, payload),
+                n,
+                block,
+            )
     finally:
         child.kill()
         child.wait(10)
+
+
+def _raw_get(session: Any, key: str, payload: bytes) -> None:
+    """One raw Zenoh get, zenoh-python's own idiom: the default FIFO channel read here."""
+    try:
+        reply = session.get(key, payload=payload, timeout=10.0).recv()
+    except Exception as exc:
+        msg = "raw get got no reply"
+        raise RuntimeError(msg) from exc
+    if reply.ok is None:
+        msg = "raw get got no reply"
+        raise RuntimeError(msg)
 
 
 def _paired(
@@ -265,18 +272,12 @@ def bench_in_process_zenoh(n: int = N_CALLS, block: int = 1) -> dict[str, tuple[
             payload = serialize(request)
             session = zc.session
 
-            def raw_call() -> None:
-                # zenoh-python's own idiom: the default FIFO channel, read in this thread
-                try:
-                    reply = session.get(raw_key, payload=payload, timeout=10.0).recv()
-                except Exception as exc:
-                    msg = "raw get got no reply"
-                    raise RuntimeError(msg) from exc
-                if reply.ok is None:
-                    msg = "raw get got no reply"
-                    raise RuntimeError(msg)
-
-            return _paired(lambda: client.call(request, timeout_sec=10.0), raw_call, n, block)
+            return _paired(
+                lambda: client.call(request, timeout_sec=10.0),
+                functools.partial(_raw_get, session, raw_key, payload),
+                n,
+                block,
+            )
         finally:
             server_ctx.shutdown()
             spinner.join(5.0)
