@@ -249,17 +249,26 @@ def test_ctrl_c_stops_every_child(domain: int, test_nodes_path: Path, tmp_path: 
     del test_nodes_path
     f = write(tmp_path / "two.yaml", TWO_OWN)
     proc = _launch_cli(domain, tmp_path, str(f))
-    pids = _started_pids(proc, 2)
-    with Context(domain) as ctx:  # wait until both children publish: fully up
-        node = Node("probe", context=ctx)
-        seen: set[str] = set()
-        node.create_subscription(String, "/chatter", lambda m: seen.add(m.data.split()[1]), 10)
-        assert ctx.spin_until(lambda: {str(p) for p in pids} <= seen, 10.0)
-    proc.send_signal(signal.SIGINT)
-    assert proc.wait(timeout=10) == 130
-    assert not [p for p in pids if alive(p)]
-    assert proc.stderr is not None
-    assert "Traceback" not in proc.stderr.read()
+    try:
+        pids = _started_pids(proc, 2)
+        with Context(domain) as ctx:  # wait until both children publish: fully up
+            node = Node("probe", context=ctx)
+            seen: set[str] = set()
+            node.create_subscription(String, "/chatter", lambda m: seen.add(m.data.split()[1]), 10)
+            assert ctx.spin_until(lambda: {str(p) for p in pids} <= seen, 10.0)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 130
+        assert not [p for p in pids if alive(p)]
+        assert proc.stderr is not None
+        assert "Traceback" not in proc.stderr.read()
+    finally:  # a failure before the signal must not leave the launch and its children
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
 
 
 @pytest.mark.ci
