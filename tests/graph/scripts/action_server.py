@@ -35,7 +35,7 @@ def execute(handle: ServerGoalHandle) -> Any:
             return make(Fibonacci.Result, sequence=np.array(seq, dtype=np.int32))
         seq.append(seq[i] + seq[i - 1])
         handle.publish_feedback(make(Fibonacci.Feedback, sequence=np.array(seq, dtype=np.int32)))
-        time.sleep(0.01)
+        time.sleep(0.1)  # order 40 runs 4 s: time for a Ctrl-C test to cancel it
     handle.succeed()
     return make(Fibonacci.Result, sequence=np.array(seq, dtype=np.int32))
 
