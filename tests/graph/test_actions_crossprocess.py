@@ -175,6 +175,10 @@ def test_malformed_requests_never_kill_the_server(
     assert client.send_goal(_goal(3), timeout_sec=10.0).status == S.STATUS_SUCCEEDED
 
 
+def _sigint_as_in_a_terminal() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_cli_ctrl_c_cancels_the_goal(server: subprocess.Popen[str], domain: int) -> None:
     proc = subprocess.Popen(
         [
@@ -184,6 +188,9 @@ def test_cli_ctrl_c_cancels_the_goal(server: subprocess.Popen[str], domain: int)
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # as from a terminal: a test run started as a background job (`cmd &` without job
+        # control) hands its children an ignored SIGINT, which Python keeps ignoring
+        preexec_fn=_sigint_as_in_a_terminal,  # noqa: PLW1509 - signal.signal only, before exec
     )  # fmt: skip
     assert proc.stdout is not None
     lines = []
