@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from rosbags.highlevel import AnyReader
 
 from visnav.description.robots import resolve_robot
 from visnav.description.world import load_world
@@ -192,6 +193,14 @@ def test_visnav_launch_gives_the_same_run_as_visnav_run(tmp_path: Path, domain: 
     assert launched["odometry"]["distance_m"] > 0.1  # the car drove towards its first goal
     assert launched["sim_duration_s"] == pytest.approx(ran["sim_duration_s"], abs=0.01)
     assert _task(launched) == _task(ran)
+    # the simulator's per-step state dumps stay out of the scenario bag (--record-all keeps
+    # them): nobody subscribes, so the simulator does not publish them either
+    with AnyReader([Path(str(ran["bag"]))]) as reader:
+        recorded = {c.topic for c in reader.connections}
+    assert {"/clock", "/tf", "/odom", "/ground_truth/odom"} <= recorded
+    assert not recorded & {"/gazebo/model_states", "/gazebo/link_states"}
+    states = ran["topics"]["/gazebo/model_states"]  # type: ignore[index]
+    assert states["count"] is None
 
 
 @pytest.mark.slow

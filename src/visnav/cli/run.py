@@ -10,6 +10,9 @@ from visnav.outpaths import check_output_dir
 from visnav.scenarios.run_control import RunInterrupt
 from visnav.scenarios.runner import SCENARIOS, format_summary, run_scenario
 from visnav.scenarios.saved_map import MAP_LOCALIZATIONS, saved_map_launch_args
+from visnav.viz.errors import VizError
+from visnav.viz.ports import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
+from visnav.viz.view_process import ViewPorts
 
 __all__ = ["add_arguments"]
 
@@ -24,7 +27,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=None, help="simulated seconds")
     parser.add_argument("--seed", type=int, default=0, help="seed of world, sensors and task")
     parser.add_argument("--out", default=None, help="output directory (default runs/<time>)")
-    parser.add_argument("--record-all", action="store_true", help="also record images and clouds")
+    parser.add_argument(
+        "--record-all",
+        action="store_true",
+        help="also record images, clouds and the simulator's /gazebo/model_states, link_states",
+    )
     parser.add_argument(
         "--record-images",
         action="store_true",
@@ -38,7 +45,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "34 MB per simulated second); implies --record-images",
     )
     parser.add_argument("--realtime", action="store_true", help="pace to the wall clock")
-    parser.add_argument("--view", action="store_true", help="stream to the Rerun web viewer")
+    parser.add_argument(
+        "--view",
+        action="store_true",
+        help="stream to the Rerun web viewer (in a process of its own; page on 127.0.0.1)",
+    )
+    parser.add_argument(
+        "--port",
+        type=int,
+        default=None,
+        help="web viewer page port (--view; default 9090, 0: a free one)",
+    )
+    parser.add_argument(
+        "--grpc-port",
+        type=int,
+        default=None,
+        help="viewer data port (--view; default 9876, 0: a free one)",
+    )
     parser.add_argument(
         "--no-slam",
         action="store_true",
@@ -82,9 +105,32 @@ def cmd_run(args: argparse.Namespace) -> int:
     return {"interrupted": interrupt.exit_code, "failed": 1}.get(summary.get("status", ""), 0)
 
 
+def _view_ports(args: argparse.Namespace) -> ViewPorts | bool:
+    """``--view``'s ports, checked before anything starts (a refused run leaves no folder).
+
+    Raises:
+        VizError: a port is taken or out of range (naming it and its option), the Rerun
+            SDK is missing, or ``--port`` / ``--grpc-port`` came without ``--view``.
+    """
+    port, grpc_port = getattr(args, "port", None), getattr(args, "grpc_port", None)
+    if not args.view:
+        if port is not None or grpc_port is not None:
+            given = "--port" if port is not None else "--grpc-port"
+            text = f"{given} sets the viewer's port: add --view (or leave {given} out)"
+            raise VizError(text)
+        return False
+    ports = ViewPorts(
+        port=DEFAULT_WEB_PORT if port is None else port,
+        grpc_port=DEFAULT_GRPC_PORT if grpc_port is None else grpc_port,
+    )
+    ports.check()
+    return ports
+
+
 def _run(args: argparse.Namespace, interrupt: RunInterrupt) -> dict[str, Any]:
     if args.out is not None:
         check_output_dir(args.out, what="the run's output directory (--out)")
+    view = _view_ports(args)
     from visnav.graph.context import Context
 
     launch_args = (
@@ -104,7 +150,7 @@ def _run(args: argparse.Namespace, interrupt: RunInterrupt) -> dict[str, Any]:
         record_images=args.record_images or args.raw_images,
         raw_images=args.raw_images,
         realtime=args.realtime,
-        view=args.view,
+        view=view,
         slam=not args.no_slam,
         ideal_sensors=args.ideal_sensors,
         launch_args=launch_args,

@@ -28,7 +28,12 @@ observer writes its files there too (the car's ``map.yaml`` / ``map.pgm`` and SL
 Where visnav differs from recording everything with ``ros2 bag record -a``: raw camera
 images and point clouds are left out of the scenario bag by default (``record_all=True``
 / ``--record-all`` keeps them, as published): at 640x480 they are ~130 MB per simulated
-second. ``record_images=True`` / ``--record-images`` keeps the camera images only, so that
+second. The simulator's ``/gazebo/model_states`` and ``/gazebo/link_states`` (every body's
+state at every physics step, 500-1000 Hz) are left out too: they were over half of a car
+bag's bytes before compression and ~10 % of a TurtleBot3 run's CPU (the simulator publishes them only while
+subscribed, as gazebo_ros_api_plugin does), and the run's ground truth is already in
+``ground_truth.tum`` and the robot's ground-truth odometry. ``record_images=True`` /
+``--record-images`` keeps the camera images only, so that
 ``visnav view BAG`` shows them beside the 3D view, stored as image_transport's compressed
 transports publish them (``<image topic>/compressed`` JPEG, depth as
 ``<image topic>/compressedDepth`` PNG; :mod:`visnav.bag.image_compression`): the car's bag
@@ -52,7 +57,7 @@ import sys
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from visnav.bag.image_compression import ImageCompression
 from visnav.bag.recorder import BagRecorder
@@ -76,6 +81,9 @@ from visnav.scenarios.run_control import (
 from visnav.scenarios.run_display import RunProgress, ViewFeed
 from visnav.sim.guards import SecondSimulationError, refuse_second_simulation
 
+if TYPE_CHECKING:
+    from visnav.viz.view_process import ViewPorts
+
 __all__ = [
     "LOG_NAME",
     "SCENARIOS",
@@ -87,7 +95,12 @@ __all__ = [
     "run_scenario",
 ]
 
-_BULKY_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/PointCloud2")
+_BULKY_TYPES = (
+    "sensor_msgs/msg/Image",
+    "sensor_msgs/msg/PointCloud2",
+    "gazebo_msgs/msg/ModelStates",
+    "gazebo_msgs/msg/LinkStates",
+)
 _SLICE_S = 0.1  # sim seconds between progress updates, topic polls and child supervision
 _LOG = logging.getLogger("visnav.scenarios")
 LOG_NAME = "run.log"
@@ -243,7 +256,7 @@ def run_scenario(
     record_images: bool = False,
     raw_images: bool = False,
     realtime: bool = False,
-    view: bool = False,
+    view: bool | ViewPorts = False,
     slam: bool = True,
     ideal_sensors: bool = False,
     launch_args: Mapping[str, str] | None = None,
@@ -266,7 +279,8 @@ def run_scenario(
             (``<topic>/compressed``, depth ``<topic>/compressedDepth``).
         raw_images: with ``record_images``, store the images raw instead.
         realtime: pace the simulation to the wall clock.
-        view: stream the run to the Rerun viewer (needs ``visnav[viz]``).
+        view: stream the run to the Rerun viewer (needs ``visnav[viz]``), in a process of
+            its own; a :class:`~visnav.viz.view_process.ViewPorts` sets its ports.
         slam: run the car's visual SLAM and score it (``slam`` summary key).
         ideal_sensors: car: ground-truth odometry and noise-free cameras (the robot's
             Xacro ``ideal_sensors:=true``), SLAM beside the navigation; False (default):
@@ -437,7 +451,7 @@ def _run(
     state: _RunState,
     record_all: bool,
     record_images: bool,
-    view: bool,
+    view: bool | ViewPorts,
     progress: TextIO | None,
 ) -> dict[str, Any]:
     """Run the started launch to its end, then write and return the summary.
@@ -487,7 +501,7 @@ def _loop(
     state: _RunState,
     record_all: bool,
     record_images: bool,
-    view: bool,
+    view: bool | ViewPorts,
     progress: TextIO | None,
 ) -> None:
     driver = launcher.lockstep_driver()
@@ -512,7 +526,7 @@ def _loop(
     )
     recorder.start()
     state.bag = bag_path
-    feed = ViewFeed(ctx, state.out_dir, progress or sys.stderr) if view else None
+    feed = ViewFeed(ctx, state.out_dir, progress or sys.stderr, view) if view else None
     duration = float(driver.duration_s)
     bar = RunProgress(state.label, duration, progress) if progress is not None else None
     start_sim = sim.sim_time_s
