@@ -11,7 +11,9 @@ Executor policy (fair, deterministic). Callbacks run in the thread that calls
 * Pending work lives with its entity: each subscription has its QoS queue
   (keep-last(N) keeps the newest N messages, dropping and counting the oldest
   when a message arrives; keep-all keeps all), each timer its deadline. There
-  is no executor-wide backlog of messages.
+  is no executor-wide backlog of messages. (Requests from other processes pass
+  through the context's inbox, which the executor empties into their services'
+  queues, in arrival order, before each step.)
 * Entities with work wait in one *ready ring* (first in, first out), each at
   most once. A subscription joins the back when a message arrives and it is
   neither in the ring nor running; a timer joins when it is found due (timers
@@ -47,6 +49,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+import queue
 import threading
 import time
 from collections import deque
@@ -63,6 +66,7 @@ from visnav.graph.keys import (
     parse_topic_key,
 )
 from visnav.graph.message_info import MessageInfo
+from visnav.graph.query_routes import QueryRoutes
 from visnav.graph.token_declarer import DeferredToken, TokenDeclarer
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
@@ -118,13 +122,17 @@ class Context:
         self._zenoh: ZenohTransport | None = None
         self._zenoh_lock = threading.Lock()
         self._lock = threading.RLock()
-        self._cond = threading.Condition(self._lock)
+        # The executor sleeps on this queue (see _signal / _sleep): wake-up tokens (None)
+        # and requests from other processes (Zenoh queries, put by Zenoh's threads).
+        self._inbox: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._sleeping = False
+        self._query_routes = QueryRoutes()
         self._topics: dict[str, _LocalTopic] = {}
         self._ready: deque[_Entity] = deque()
         self._queued: set[_Entity] = set()
         self._running: _Entity | None = None
         self._callback_thread: int | None = None
-        self._services: dict[str, list[Service[Any, Any]]] = {}
+        self._services: dict[str, tuple[Service[Any, Any], ...]] = {}
         self._graph_cond = threading.Condition()
         self._declarer: TokenDeclarer | None = None
         self._timers: list[Timer] = []
@@ -160,7 +168,7 @@ class Context:
             node.destroy_node()
         self._shutdown = True
         with self._lock:
-            self._cond.notify_all()
+            self._signal()
         if self._declarer is not None:
             self._declarer.close()
         if self._watch is not None:
@@ -283,7 +291,7 @@ class Context:
                     for msg in pub.history:
                         sub.enqueue(msg, pub.local_info() if sub.wants_info else None)
                     self._schedule(sub)
-            self._cond.notify_all()
+            self._signal()
 
     def remove_publisher(self, pub: Publisher[Any]) -> None:
         """Called by :class:`Node`: detach a publisher."""
@@ -320,7 +328,7 @@ class Context:
         """Called by :class:`Node`: schedule a timer."""
         with self._lock:
             self._timers.append(timer)
-            self._cond.notify_all()
+            self._signal()
 
     def remove_timer(self, timer: Timer) -> None:
         """Called by :class:`Node`: unschedule a timer."""
@@ -338,7 +346,9 @@ class Context:
                     self._ready.append(sub)
             if pub.history is not None:
                 pub.history.append(msg)
-            self._cond.notify()
+            wake, self._sleeping = self._sleeping, False
+        if wake:
+            self._inbox.put(None)
 
     def deliver_remote(
         self, sub: Subscription[Any], payload: Any, info: MessageInfo | None
@@ -349,12 +359,14 @@ class Context:
             if sub is not self._running and sub not in self._queued:
                 self._queued.add(sub)
                 self._ready.append(sub)
-            self._cond.notify()
+            wake, self._sleeping = self._sleeping, False
+        if wake:
+            self._inbox.put(None)
 
     def wake(self) -> None:
         """Wake a waiting :meth:`spin_once` (e.g. after a clock change)."""
         with self._lock:
-            self._cond.notify_all()
+            self._signal()
 
     def _on_graph_change(self) -> None:
         self.wake()
@@ -392,15 +404,18 @@ class Context:
         """Called by :class:`Node`: make a server reachable by in-process clients."""
         with self._lock:
             self._check_ok()
-            self._services.setdefault(service.srv_name, []).append(service)
+            # copied on write: local_service reads without the lock
+            servers = self._services.get(service.srv_name, ())
+            self._services[service.srv_name] = (*servers, service)
 
     def remove_service(self, service: Service[Any, Any]) -> None:
         """Called by :class:`Node`: detach a server and fail its queued requests."""
         with self._lock:
-            servers = self._services.get(service.srv_name, [])
-            if service in servers:
-                servers.remove(service)
-            if not servers:
+            self._drain_inbox(keep_token=True)
+            servers = tuple(s for s in self._services.get(service.srv_name, ()) if s is not service)
+            if servers:
+                self._services[service.srv_name] = servers
+            else:
                 self._services.pop(service.srv_name, None)
             waiting = list(service.queue)
             service.queue.clear()
@@ -410,10 +425,9 @@ class Context:
 
     def local_service(self, name: str, type_name: str) -> Service[Any, Any] | None:
         """The first in-process server of ``name`` with type ``type_name``, or None."""
-        with self._lock:
-            for service in self._services.get(name, ()):
-                if service.srv_type.name == type_name:
-                    return service
+        for service in self._services.get(name, ()):  # a tuple, replaced on change
+            if service.srv_type.name == type_name:
+                return service
         return None
 
     def service_is_ready(self, name: str, type_name: str) -> bool:
@@ -426,14 +440,20 @@ class Context:
         """Queue a request for ``service`` (any thread) and wake the executor."""
         with self._lock:
             service.enqueue(request)
-            self._schedule(service)
-            self._cond.notify()
+            if service is not self._running and service not in self._queued:
+                self._queued.add(service)
+                self._ready.append(service)
+            wake, self._sleeping = self._sleeping, False
+        if wake:  # after unlocking: the executor wakes to a free lock
+            self._inbox.put(None)
 
     def notify_ready(self, entity: _Entity) -> None:
         """Put ``entity`` (which has work now) in the ready ring (any thread)."""
         with self._lock:
             self._schedule(entity)
-            self._cond.notify()
+            wake, self._sleeping = self._sleeping, False
+        if wake:
+            self._inbox.put(None)
 
     def in_callback(self) -> bool:
         """Whether the calling thread is running a callback of this context."""
@@ -466,6 +486,87 @@ class Context:
         """
         self.faults.set_policy(node_name, policy)
 
+    def _signal(self) -> None:
+        """With the lock held: wake the executor if it sleeps in :meth:`_sleep`.
+
+        The sleeping executor sets ``_sleeping`` (lock held) and blocks on ``_inbox``, a
+        ``queue.SimpleQueue``; a producer that finds it set clears it and puts one
+        ``None`` token (the hot paths after unlocking, so the woken executor does not
+        wake only to wait for their lock). Leftover tokens are skipped. Zenoh's thread
+        puts each remote query in the inbox directly (:meth:`route_queries`): no Python
+        runs there for them.
+        """
+        if self._sleeping:
+            self._sleeping = False
+            self._inbox.put(None)
+
+    def _sleep(self, timeout_s: float | None) -> None:
+        """With the lock held once: release it and sleep until woken or the timeout.
+
+        Only the spinning thread sleeps (one at a time, see :meth:`spin_once`). Returns
+        with the lock held again; the caller looks for work again either way.
+        """
+        self._sleeping = True
+        lock = self._lock
+        item = None
+        lock.release()
+        try:
+            item = self._inbox.get(timeout=timeout_s)
+        except queue.Empty:
+            pass
+        finally:
+            lock.acquire()
+            self._sleeping = False
+        if item is not None:
+            self._route_query(item)
+
+    # ------------------------------------------------------------------ remote requests
+    def route_queries(self, service: Service[Any, Any], key: str) -> Callable[[Any], None]:
+        """Send Zenoh queries on ``key`` to ``service``; return the queryable's callback.
+
+        The callback (the inbox's ``put``) runs on Zenoh's thread and only queues the
+        query; the executor routes it to ``service``'s queue by its key before taking
+        the next callback (in arrival order, so fairness is as for in-process requests).
+        """
+        with self._lock:
+            self._query_routes.add(key, service)
+        return self._inbox.put
+
+    def forget_queries(self, key: str) -> None:
+        """Stop routing queries on ``key``; the ones already queued go to the service first."""
+        with self._lock:
+            self._drain_inbox(keep_token=True)
+            self._query_routes.remove(key)
+
+    def _drain_inbox(self, *, keep_token: bool = False) -> None:
+        """With the lock held: route every queued query (wake-up tokens are dropped).
+
+        ``keep_token``: for a caller that may not be the executor, which may be about
+        to take a token from the inbox: one is put back if any was taken.
+        """
+        inbox = self._inbox
+        took_token = False
+        while True:
+            try:
+                item = inbox.get_nowait()
+            except queue.Empty:
+                break
+            if item is None:
+                took_token = True
+            else:
+                self._route_query(item)
+        if took_token and keep_token:
+            inbox.put(None)
+
+    def _route_query(self, query: Any) -> None:
+        """With the lock held: queue a Zenoh query for the service its key names."""
+        service = self._query_routes.find(query)
+        if service is not None:
+            service.accept_query(query)
+            if service is not self._running and service not in self._queued:
+                self._queued.add(service)
+                self._ready.append(service)
+
     def _schedule(self, entity: _Entity) -> None:
         """Put ``entity`` at the back of the ready ring unless it is there or running."""
         if entity is not self._running and entity not in self._queued:
@@ -485,32 +586,43 @@ class Context:
             for timer in due:
                 self._schedule(timer)
 
-    def _take(self) -> tuple[_Entity | None, Callable[[], None] | None, float | None]:
+    def _take(self) -> tuple[_Entity, Callable[[], None]] | None:
+        """With the lock held: the next callback from the ready ring (due timers joined first)."""
+        if not self._inbox.empty():
+            self._drain_inbox()
         if self._timers:
             self._poll_timers()
-        queued = self._queued
         ready = self._ready
         while ready:
             entity = ready.popleft()
-            queued.discard(entity)
+            self._queued.discard(entity)
             call = entity.take_call()
             if call is not None:
                 self._running = entity
-                return entity, call, None
-        return None, None, self._wall_wait_s()
-
-    def _take_or_wait(self, deadline: float | None) -> tuple[_Entity, Callable[[], None]] | None:
-        """With the lock held: the next callback, waiting until ``deadline`` for one."""
-        while not self._shutdown:
-            entity, call, wait = self._take()
-            if entity is not None and call is not None:
                 return entity, call
+        return None
+
+    def _take_or_wait(self, timeout_s: float | None) -> tuple[_Entity, Callable[[], None]] | None:
+        """With the lock held: the next callback, waiting up to ``timeout_s`` for one."""
+        if self._shutdown:
+            return None
+        taken = self._take()
+        if taken is not None or timeout_s == 0:
+            return taken
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while True:
             remaining = None if deadline is None else deadline - time.monotonic()
             if remaining is not None and remaining <= 0:
                 return None
-            waits = [w for w in (wait, remaining) if w is not None]
-            self._cond.wait(min(waits) if waits else None)
-        return None
+            wait = self._wall_wait_s()
+            if wait is not None and (remaining is None or wait < remaining):
+                remaining = wait
+            self._sleep(remaining)
+            if self._shutdown:
+                return None
+            taken = self._take()
+            if taken is not None:
+                return taken
 
     def spin_once(self, timeout_s: float | None = None) -> bool:
         """Run at most one ready callback, waiting up to ``timeout_s`` for one.
@@ -527,7 +639,6 @@ class Context:
         Raises:
             CallbackError: the callback raised and its node's error policy is ``"raise"``.
         """
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
         lock = self._lock
         with lock:
             if self._spinning:
@@ -535,7 +646,7 @@ class Context:
                 raise GraphError(msg)
             self._spinning = True
             try:
-                taken = self._take_or_wait(deadline)
+                taken = self._take_or_wait(timeout_s)
             finally:
                 if self._running is None:
                     self._spinning = False

@@ -21,6 +21,14 @@ error, counted in :attr:`Service.dropped`), and takes one request per turn of th
 fair ring. An exception in a server callback is answered to the client and then goes
 to the fault boundary (logged with node, service and type; the node keeps running).
 
+A request from another process runs no Python on Zenoh's thread: the queryable's
+callback is the context's inbox (a ``queue.SimpleQueue``'s ``put``), which also wakes
+the executor; the executor routes each query to its service's queue by the query's
+key before it takes its next callback, and reads the request (CDR) itself. So a
+request that pushes an older one out of a full queue does so, and that caller is
+answered, when the executor next takes work. Requests and replies are sent as Zenoh
+*express* messages (at once, not held back for batching).
+
 A client's :class:`~visnav.graph.future.Future` completes on the transport's thread,
 so :meth:`Client.call` works from any thread that is not running a callback of the
 client's own executor (there it would wait for itself: refused with an error); the
@@ -37,7 +45,6 @@ Actions build on this module: an action is three services (``send_goal``,
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import functools
 import hashlib
 import itertools
@@ -53,9 +60,9 @@ import zenoh
 from visnav.graph.errors import GraphError, ServiceError, ServiceTimeoutError
 from visnav.graph.future import Future
 from visnav.graph.qos import QoSProfile
-from visnav.msgs.construct import default_message
+from visnav.graph.service_codec import Decoder, Encoder, message_factory
 from visnav.msgs.errors import MessageError
-from visnav.msgs.serde import deserialize, serialize, typestore
+from visnav.msgs.serde import serialize
 from visnav.msgs.srv import ServiceType
 
 if TYPE_CHECKING:
@@ -100,121 +107,48 @@ def decode_service_attachment(data: bytes | None) -> tuple[int, int, bytes] | No
     return seq, stamp, bytes(data[_ATTACH.size + 1 :])
 
 
-def _reply_attachment(request_attachment: bytes | None) -> bytearray | None:
+def _reply_attachment(request_attachment: bytes | None) -> bytes | None:
     """The reply's attachment: the request's sequence number and GID, a new source time."""
     if (
         request_attachment is None
-        or len(request_attachment) != _ATTACH.size + 1 + _GID_SIZE
+        or len(request_attachment) != _ATTACH_SIZE
         or request_attachment[_ATTACH.size] != _GID_SIZE
     ):
         return None
-    reply = bytearray(request_attachment)
-    _STAMP.pack_into(reply, 8, time.time_ns())
-    return reply
+    return request_attachment[:8] + _STAMP_PACK(time.time_ns()) + request_attachment[16:]
 
 
-_STAMP = struct.Struct("<q")
-_CDR_LE = b"\x00\x01"
+_ATTACH_SIZE = _ATTACH.size + 1 + _GID_SIZE
+_STAMP_PACK = struct.Struct("<q").pack
 _BEST_MATCHING = zenoh.QueryTarget.BEST_MATCHING
 _NO_CONSOLIDATION = zenoh.ConsolidationMode.NONE
 _Callback = zenoh.handlers.Callback
 
 
-class _Decoder:
-    """Decode CDR of one message type with its generated function, looked up once.
-
-    A call's hot path: the general :func:`~visnav.msgs.serde.deserialize` looks the
-    type up on every call. Anything but well-formed little-endian CDR goes to it, so
-    errors (and big-endian data) are handled and worded exactly as there.
-    """
-
-    __slots__ = ("_cls", "_func", "_store", "type_name")
-
-    def __init__(self, type_name: str) -> None:
-        self.type_name = type_name
-        self._store = typestore()
-        msgdef = self._store.get_msgdef(type_name)
-        self._func = msgdef.deserialize_cdr_le
-        self._cls = msgdef.cls
-
-    def __call__(self, data: bytes) -> Any:
-        """The message in ``data``; raises MessageError when it does not decode."""
-        if data[:2] == _CDR_LE:
-            try:
-                message, pos = self._func(memoryview(data)[4:], 0, self._cls, self._store)
-            except Exception:  # noqa: BLE001, S110 - the general path words the error
-                pass
-            else:
-                if pos + 4 + 3 >= len(data):
-                    return message
-        return deserialize(memoryview(data), self.type_name)
-
-
-class _Encoder:
-    """Encode messages of one type as little-endian CDR with its generated function.
-
-    The client's hot path (see :class:`_Decoder`); a message that does not encode goes
-    to :func:`~visnav.msgs.serde.serialize`, which words the error.
-    """
-
-    __slots__ = ("_func", "_size", "_store")
-
-    def __init__(self, type_name: str) -> None:
-        self._store = typestore()
-        msgdef = self._store.get_msgdef(type_name)
-        self._size = msgdef.getsize_cdr
-        self._func = msgdef.serialize_cdr_le
-
-    def __call__(self, message: Any) -> bytes | bytearray:
-        """``message`` as CDR; raises MessageError when it does not encode."""
-        try:
-            size = self._size(0, message, self._store)
-            data = bytearray(4 + size)  # fresh zeros: the generated code skips padding
-            data[1] = 1
-            if self._func(memoryview(data)[4:], 0, message, self._store) == size:
-                return data
-        except Exception:  # noqa: BLE001, S110 - the general path words the error
-            pass
-        return serialize(message)
-
-
-def _message_factory(type_name: str) -> Callable[[], Any]:
-    """A maker of fresh default messages of ``type_name`` (``default_message``'s result).
-
-    For types whose fields are all immutable scalars (std_srvs' responses) the
-    defaults are computed once; others are built by ``default_message`` each time
-    (their arrays and nested messages must not be shared between calls).
-    """
-    template = default_message(type_name)
-    values = {
-        f.name: getattr(template, f.name)
-        for f in dataclasses.fields(template)
-        if f.init and f.name != "__msgtype__"
-    }
-    if all(type(v) in {bool, int, float, str} for v in values.values()):
-        cls: Callable[..., Any] = type(template)
-        return functools.partial(cls, **values)
-    return functools.partial(default_message, type_name)
-
-
 class _Request:
-    """A request waiting in a server's queue, with the way back to its caller."""
+    """A request waiting in a server's queue, with the way back to its caller.
 
-    __slots__ = ("attachment", "future", "payload", "query", "remote")
+    An in-process request carries the request message and a future; a remote one
+    carries only its Zenoh query, whose payload and attachment are read in the
+    executor (:meth:`cdr`, :meth:`respond`): the transport's thread only queues it.
+    """
 
-    def __init__(
-        self,
-        payload: Any,
-        *,
-        future: Future[Any] | None = None,
-        query: Any = None,
-        attachment: bytes | None = None,
-    ) -> None:
-        self.payload = payload  # the request message (in process) or its CDR bytes
+    __slots__ = ("future", "payload", "query", "remote")
+
+    def __init__(self, payload: Any, future: Future[Any] | None = None, query: Any = None) -> None:
+        self.payload = payload  # the request message (in process), or None (remote)
         self.remote = query is not None
         self.future = future
         self.query = query
-        self.attachment = attachment
+
+    def cdr(self) -> bytes:
+        """A remote request's CDR bytes (empty when the query carried no payload)."""
+        data = self.payload
+        if data is None:
+            query = self.query
+            payload = query.payload if query is not None else None
+            data = self.payload = payload.to_bytes() if payload is not None else b""
+        return data  # type: ignore[no-any-return]
 
     def respond(
         self, response: Any, encode: Callable[[Any], bytes | bytearray] = serialize
@@ -227,7 +161,13 @@ class _Request:
         if query is None:
             return
         try:  # inline rather than through _reply: this is a call's hot path
-            query.reply(query.key_expr, data, attachment=_reply_attachment(self.attachment))
+            att = query.attachment
+            query.reply(
+                query.key_expr,
+                data,
+                attachment=_reply_attachment(att.to_bytes()) if att is not None else None,
+                express=True,  # sent at once, not held back for batching
+            )
         except Exception:  # noqa: BLE001, S110 - the caller went away (timeout, exit)
             pass
         finally:
@@ -285,10 +225,12 @@ class Service(Generic[ReqT, RespT]):
         self.bad_requests = 0
         """Remote requests that did not decode (answered with an error, logged once)."""
         self._queryable: Any = None
+        self._key: str | None = None
+        self._deliver = node.context.deliver_request
         self._response_cls = srv_type.Response
-        self._new_response = _message_factory(srv_type.response_type_name)
-        self._decode_request = _Decoder(srv_type.request_type_name)
-        self._encode_response = _Encoder(srv_type.response_type_name)
+        self._new_response = message_factory(srv_type.response_type_name)
+        self._decode_request = Decoder(srv_type.request_type_name)
+        self._encode_response = Encoder(srv_type.response_type_name)
 
     @property
     def service_name(self) -> str:
@@ -327,7 +269,7 @@ class Service(Generic[ReqT, RespT]):
         if not item.remote:
             return item.payload
         try:
-            return self._decode_request(item.payload)
+            return self._decode_request(item.cdr())
         except MessageError as exc:
             self.bad_requests += 1
             text = f"{self.describe()} could not read the request: {exc}"
@@ -390,21 +332,32 @@ class Service(Generic[ReqT, RespT]):
 
     # ------------------------------------------------------------------ transport
     def attach_transport(self, session: zenoh.Session, key: str) -> None:
-        """Declare the queryable that takes requests from other processes."""
-        # direct: _on_query only queues (an indirect handler costs a Python thread each)
+        """Declare the queryable that takes requests from other processes.
+
+        Its callback is the context's inbox (:meth:`Context.route_queries`): Zenoh's
+        thread only queues the query, running no Python code, and the executor routes
+        it to this service by its key.
+        """
+        ctx = self.node.context
+        self._key = key
         self._queryable = session.declare_queryable(
             key,
-            zenoh.handlers.Callback(self._on_query, indirect=False),
+            # direct: only a queue's put (an indirect handler costs a Python thread each)
+            zenoh.handlers.Callback(ctx.route_queries(self, key), indirect=False),
             allowed_origin=zenoh.Locality.REMOTE,
         )
 
+    def accept_query(self, query: Any) -> None:
+        """Queue a request from another process (context lock held; see ``enqueue``)."""
+        self.enqueue(_Request(None, None, query))
+
     def _on_query(self, query: Any) -> None:
-        """A request from another process (a Zenoh thread): queue it for the executor."""
-        payload = query.payload
-        data = payload.to_bytes() if payload is not None else b""
-        att = query.attachment
-        item = _Request(data, query=query, attachment=att.to_bytes() if att is not None else None)
-        self.node.context.deliver_request(self, item)
+        """A request from another process that arrived through a shared queryable.
+
+        (A node's parameter services share one queryable, which calls this.) Only
+        queued here; it is read in the executor.
+        """
+        self._deliver(self, _Request(None, None, query))
 
     def close_transport(self) -> None:
         """Undeclare the queryable; queued remote requests are answered with an error."""
@@ -412,6 +365,9 @@ class Service(Generic[ReqT, RespT]):
             with contextlib.suppress(Exception):  # the session is already closed
                 self._queryable.undeclare()
             self._queryable = None
+        if self._key is not None:
+            self.node.context.forget_queries(self._key)
+            self._key = None
 
     def destroy(self) -> None:
         """Remove the service."""
@@ -433,8 +389,8 @@ class Client(Generic[ReqT, RespT]):
         self._gid = entity_gid(node.context.zid, self.entity_id)
         self._callbacks: deque[Future[Any]] = deque()
         self._request_cls = srv_type.Request
-        self._decode_response = _Decoder(srv_type.response_type_name)
-        self._encode_request = _Encoder(srv_type.request_type_name)
+        self._decode_response = Decoder(srv_type.response_type_name)
+        self._encode_request = Encoder(srv_type.request_type_name)
         self._gid_tail = bytes([_GID_SIZE]) + self._gid[:_GID_SIZE]
         self._pending: set[Future[Any]] = set()
         self._lock = threading.Lock()
@@ -488,7 +444,7 @@ class Client(Generic[ReqT, RespT]):
         ctx = self.node.context
         local = ctx.local_service(self.srv_name, self.srv_type.name)
         if local is not None:
-            ctx.deliver_request(local, _Request(request, future=future))
+            ctx.deliver_request(local, _Request(request, future))
             self._watch(future, timeout_sec)
             return future
         if self._session is None or self._key is None:
@@ -538,6 +494,7 @@ class Client(Generic[ReqT, RespT]):
             attachment=att,
             target=_BEST_MATCHING,
             consolidation=_NO_CONSOLIDATION,
+            express=True,  # sent at once, not held back for batching
             timeout=timeout_sec if timeout_sec is not None else _FOREVER_S,
         )
 
@@ -641,7 +598,7 @@ class Client(Generic[ReqT, RespT]):
         except MessageError as exc:
             raise ServiceError(f"{self.describe()}: {exc}") from exc
         deadline = time.monotonic() + (timeout_sec if timeout_sec is not None else _FOREVER_S)
-        replies = self._get(payload, zenoh.handlers.DefaultHandler(), timeout_sec)
+        replies = self._get(payload, None, timeout_sec)  # None: Zenoh's default FIFO channel
         try:
             reply = replies.recv()  # a Ctrl-C interrupts it
         except zenoh.ZError:  # closed without a reply: no server, or it went away
