@@ -37,7 +37,7 @@ class Demo:
     names: list[str] = param(["a", "b"], description="names")  # noqa: RUF009
 
     def __post_init__(self) -> None:
-        if self.low > self.high:
+        if not self.low <= self.high:  # NaN too: a double parameter may be NaN
             msg = f"low {self.low} > high {self.high}; expected low <= high"
             raise VisnavError(msg)
 
