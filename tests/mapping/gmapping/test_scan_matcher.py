@@ -116,3 +116,41 @@ def test_a_write_to_a_shared_patch_copies_it(synthetic_room: SimpleNamespace) ->
     assert not np.array_equal(maps.values(0)[0], maps.values(2)[0])
     assert maps.patches_in_use > shared
     assert maps.refcount.max() <= 3
+
+
+def test_a_bounded_score_is_exact_or_below_the_bound(synthetic_room: SimpleNamespace) -> None:
+    """The hill climbing's early exit never changes a score that could exceed the bound."""
+    maps = _map(synthetic_room)
+    ranges = _scan(synthetic_room, TRUE)
+    lx, ly = TRUE[0] + math.cos(TRUE[2]) * LASER[0], TRUE[1] + math.sin(TRUE[2]) * LASER[0]
+    win = k._window(
+        maps.tables[0], maps.accx, maps.accy, maps.hits, maps.visits, lx, ly, USABLE,
+        maps.delta, maps.cx0, maps.cy0, 1,
+    )  # fmt: skip
+    beams = k._used_beams(ranges, USABLE, 0)
+    dists = np.empty(len(beams))
+    rng = np.random.default_rng(3)
+    abandoned = kept = 0
+    for _ in range(20):
+        x, y, t = np.array(TRUE) + rng.normal(0.0, [0.03, 0.03, 0.03])
+
+        def match(bound: float, x: float = x, y: float = y, t: float = t) -> float:
+            return float(
+                k._match(
+                    win, maps.tables[0], maps.accx, maps.accy, maps.hits, maps.visits, x, y, t,
+                    ranges, beams, np.cos(ANGLES), np.sin(ANGLES), LASER, SIGMA, 1.0,
+                    maps.delta, maps.cx0, maps.cy0, 1, False, bound, dists,
+                )[0]
+            )  # fmt: skip
+
+        exact = match(-math.inf)
+        for bound in (exact - 5.0, exact - 1e-9, exact, exact + 1e-9, exact + 0.5, exact + 40.0):
+            got = match(bound)
+            if got == -math.inf:
+                abandoned += 1
+                assert exact < bound
+            else:
+                kept += 1
+                assert got == exact  # bit for bit
+    assert abandoned > 0
+    assert kept > 0

@@ -30,6 +30,7 @@ __all__ = [
     "cell",
     "count_new_patches",
     "hit_cell_bounds",
+    "hit_points",
     "laser_origin",
     "register_hits",
     "replay_scans",
@@ -81,10 +82,30 @@ def laser_origin(pose: F64, laser: F64) -> tuple[float, float, float]:  # pragma
 
 
 @njit(cache=True)
+def hit_points(
+    poses: F64, ranges: F64, angles: F64, laser: F64, limit: float
+) -> F64:  # pragma: no cover - compiled
+    """(P, B, 2) end points of each particle's beams; NaN for a beam beyond ``limit``, 0 or NaN."""
+    out = np.full((poses.shape[0], ranges.shape[0], 2), np.nan)
+    for p in range(poses.shape[0]):
+        lx, ly, lt = laser_origin(poses[p], laser)
+        for i in range(ranges.shape[0]):
+            r = ranges[i]
+            if not (r <= limit) or r == 0.0:
+                continue
+            out[p, i, 0] = lx + r * math.cos(lt + angles[i])
+            out[p, i, 1] = ly + r * math.sin(lt + angles[i])
+    return out
+
+
+@njit(cache=True)
 def hit_cell_bounds(
-    poses: F64, ranges: F64, angles: F64, laser: F64, limit: float, delta: float
+    poses: F64, points: F64, laser: F64, delta: float
 ) -> tuple[int, int, int, int, int]:  # pragma: no cover - compiled
-    """Global cell bounds (min gx, min gy, max gx, max gy, count) of the endpoints to register."""
+    """Global cell bounds (min gx, min gy, max gx, max gy, count) of the lasers and end points.
+
+    ``points``: :func:`hit_points` (NaN: not registered).
+    """
     mnx = 1 << 40
     mny = 1 << 40
     mxx = -(1 << 40)
@@ -92,19 +113,19 @@ def hit_cell_bounds(
     n = 0
     inv = 1.0 / delta
     for p in range(poses.shape[0]):
-        lx, ly, lt = laser_origin(poses[p], laser)
+        lx, ly, _ = laser_origin(poses[p], laser)
         gx0 = math.floor(lx * inv)
         gy0 = math.floor(ly * inv)
         mnx = min(mnx, gx0)
         mny = min(mny, gy0)
         mxx = max(mxx, gx0)
         mxy = max(mxy, gy0)
-        for i in range(ranges.shape[0]):
-            r = ranges[i]
-            if not (r <= limit) or r == 0.0:
+        for i in range(points.shape[1]):
+            hx = points[p, i, 0]
+            if math.isnan(hx):
                 continue
-            gx = math.floor((lx + r * math.cos(lt + angles[i])) * inv)
-            gy = math.floor((ly + r * math.sin(lt + angles[i])) * inv)
+            gx = math.floor(hx * inv)
+            gy = math.floor(points[p, i, 1] * inv)
             mnx = min(mnx, gx)
             mny = min(mny, gy)
             mxx = max(mxx, gx)
@@ -115,31 +136,21 @@ def hit_cell_bounds(
 
 @njit(cache=True)
 def count_new_patches(
-    tables: I32,
-    refcount: I32,
-    poses: F64,
-    ranges: F64,
-    angles: F64,
-    laser: F64,
-    limit: float,
-    delta: float,
-    cx0: int,
-    cy0: int,
+    tables: I32, refcount: I32, points: F64, delta: float, cx0: int, cy0: int
 ) -> int:  # pragma: no cover - compiled
-    """An upper bound of the patches :func:`register_hits` will allocate."""
+    """An upper bound of the patches :func:`register_hits` will allocate for ``points``."""
     ph = tables.shape[1]
     pw = tables.shape[2]
     mark = np.full(ph * pw, -1, np.int64)
     inv = 1.0 / delta
     need = 0
-    for p in range(poses.shape[0]):
-        lx, ly, lt = laser_origin(poses[p], laser)
-        for i in range(ranges.shape[0]):
-            r = ranges[i]
-            if not (r <= limit) or r == 0.0:
+    for p in range(points.shape[0]):
+        for i in range(points.shape[1]):
+            hx = points[p, i, 0]
+            if math.isnan(hx):
                 continue
-            ix = math.floor((lx + r * math.cos(lt + angles[i])) * inv) - cx0
-            iy = math.floor((ly + r * math.sin(lt + angles[i])) * inv) - cy0
+            ix = math.floor(hx * inv) - cx0
+            iy = math.floor(points[p, i, 1] * inv) - cy0
             k = (iy >> PATCH_SHIFT) * pw + (ix >> PATCH_SHIFT)
             if mark[k] == p:
                 continue
@@ -160,31 +171,25 @@ def register_hits(
     refcount: I32,
     free: I32,
     free_top: NDArray[np.int64],
-    poses: F64,
-    ranges: F64,
-    angles: F64,
-    laser: F64,
-    limit: float,
+    points: F64,
     delta: float,
     cx0: int,
     cy0: int,
 ) -> None:  # pragma: no cover - compiled
-    """gmapping's ``registerScan`` without map generation: add each endpoint as a hit.
+    """gmapping's ``registerScan`` without map generation: add each end point as a hit.
 
-    Endpoints beyond ``limit`` (min of maxRange and maxUrange), zero or NaN are skipped.
-    Every endpoint must be inside the tables and ``free`` must hold enough patch ids
-    (:func:`hit_cell_bounds`, :func:`count_new_patches`).
+    ``points``: :func:`hit_points` (NaN: skipped). Every end point must be inside the
+    tables and ``free`` must hold enough patch ids (:func:`hit_cell_bounds`,
+    :func:`count_new_patches`).
     """
     inv = 1.0 / delta
     nc = PATCH * PATCH
-    for p in range(poses.shape[0]):
-        lx, ly, lt = laser_origin(poses[p], laser)
-        for i in range(ranges.shape[0]):
-            r = ranges[i]
-            if not (r <= limit) or r == 0.0:
+    for p in range(points.shape[0]):
+        for i in range(points.shape[1]):
+            hx = points[p, i, 0]
+            if math.isnan(hx):
                 continue
-            hx = lx + r * math.cos(lt + angles[i])
-            hy = ly + r * math.sin(lt + angles[i])
+            hy = points[p, i, 1]
             ix = math.floor(hx * inv) - cx0
             iy = math.floor(hy * inv) - cy0
             py = iy >> PATCH_SHIFT

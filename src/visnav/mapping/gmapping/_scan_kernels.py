@@ -1,13 +1,21 @@
 """numba kernels of gmapping's scan matcher (``score``, ``likelihoodAndScore``, ``optimize``).
 
 The lookups of one particle's map go through a dense window around the laser
-(:func:`_window`: each full cell's mean hit point, and per cell two 3 x 3 bit masks, its
-full neighbours and its neighbours that are not below the fullness threshold), falling
-back to the patch tables outside it. A beam's candidate cells are then one AND of two
-masks (the end point's full neighbours and the not-below neighbours of the cell one free
-step back), visited in gmapping's loop order, so the results are those of gmapping's
-per-cell rules bit for bit (:mod:`visnav.mapping.gmapping.reference` is the plain-Python
-version).
+(:func:`_window`: each cell's class, each full cell's mean hit point, and per cell two
+3 x 3 bit masks, its full neighbours and its neighbours that are not below the fullness
+threshold), falling back to the patch tables outside it. A beam's candidate cells are
+then one AND of two masks (the end point's full neighbours and the not-below neighbours of
+the cell one free step back), and its distance is the smallest of the candidates'
+distances, taken over all nine neighbours without branches. The results are those of
+gmapping's per-cell rules bit for bit (:mod:`visnav.mapping.gmapping.reference` is the
+plain-Python version).
+
+The hill climbing only asks whether a move scores above the current score. A score is a
+sum of one term ``exp(-u)`` in ``[0, 1]`` per beam, so a move is abandoned as soon as upper
+bounds of the terms so far (``min(1, 1 - u + u^2 / 2)``, no ``exp``) plus one per beam left
+stay below the current score (with a margin larger than the rounding of the sums); a move
+that is not abandoned gets its terms summed in beam order, the same score bit for bit as
+without the bound, so the climb takes the same steps as gmapping's.
 """
 
 from __future__ import annotations
@@ -34,14 +42,15 @@ __all__ = ["likelihood_and_score", "optimize", "scan_match_all", "score"]
 
 F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
-I16 = NDArray[np.int16]
+I8 = NDArray[np.int8]
 _NULL_LIKELIHOOD = -0.5
 _WIN_MARGIN = 10  # cells the hill climbing may move before lookups leave the window
-_WIN_HALF_MAX = 90  # (2 * 90 + 1)**2 cells < 2**15: the window's codes are int16
+_WIN_HALF_MAX = 90  # at most (2 * 90 + 1)**2 cells (0.6 MB) per particle's window
 _SEEN = 256  # poses the hill climbing remembers (it scores about 100)
 _lowest_bit = cast("Callable[[Any], int]", trailing_zeros)  # index of the lowest set bit
-# (code, means, wx0, wy0, near, n): see :func:`_window`
-Window = tuple[I16, F64, int, int, NDArray[np.uint32], int]
+_BELOW, _AT, _FULL = 0, 1, 2  # cell classes; unknown cells are below the threshold
+# (cls, means, wx0, wy0, near, n): see :func:`_window`
+Window = tuple[I8, F64, int, int, NDArray[np.uint32], int]
 
 
 @njit(cache=True)
@@ -59,26 +68,24 @@ def _window(
     cy0: int,
     kernel: int,
 ) -> Window:  # pragma: no cover - compiled
-    """A dense index of a particle's full cells around a laser origin, for fast lookups.
+    """A dense copy of a particle's map classes around a laser origin, for fast lookups.
 
-    Returns ``(code, means, wx0, wy0, near, n)`` over an ``n x n`` window whose cell (0, 0) is
+    Returns ``(cls, means, wx0, wy0, near, n)`` over an ``n x n`` window whose cell (0, 0) is
     table cell ``(wx0, wy0)``; cell ``(wx, wy)`` is entry ``wy * n + wx`` of the flat arrays.
-    ``code`` is -1 for a cell below gmapping's fullness threshold (or unknown), -2 exactly
-    at it, else the row of the cell's mean hit point ``(x, y)`` in ``means``. With
+    ``cls`` is the cell's class: ``_BELOW`` gmapping's fullness threshold (or unknown),
+    ``_AT`` exactly at it, ``_FULL`` above it; ``means`` holds a full cell's mean hit point
+    ``(x, y)`` (unspecified for the others: their distances are computed and discarded). With
     ``kernel`` 1, ``near`` holds each cell's 3 x 3 neighbourhood as bits ``(ox + 1) * 3 +
     (oy + 1)`` (offsets -1..1): bits 0-8 the neighbours that are full, bits 16-24 those
     that are not below the threshold (full or exactly at it); other kernels leave it 0.
     """
-    # capped so that every code fits an int16 (lookups beyond the window use the patches)
+    # capped (lookups beyond the window use the patches)
     half = min(math.ceil(reach / delta) + _WIN_MARGIN, _WIN_HALF_MAX)
     wx0 = math.floor(lx / delta) - cx0 - half
     wy0 = math.floor(ly / delta) - cy0 - half
     n = 2 * half + 1
-    code = np.full(n * n, -1, np.int16)
-    cap = 256
-    means = np.empty((cap, 2))
-    where = np.empty(cap, np.int64)
-    count = 0
+    cls = np.zeros(n * n, np.int8)
+    means = np.empty((n * n, 2))  # set for full cells; the others are never used
     ph, pw = table.shape
     px0 = max(0, wx0 >> PATCH_SHIFT)
     py0 = max(0, wy0 >> PATCH_SHIFT)
@@ -102,29 +109,20 @@ def _window(
                     if v == 0:
                         continue
                     h = hits[pid, kk]
+                    w = wy * n + wx
                     if h / v == FULLNESS:
-                        code[wy * n + wx] = -2  # neither full nor below the threshold
+                        cls[w] = _AT
                     elif h / v > FULLNESS:
-                        if count == cap:
-                            grown = np.empty((2 * cap, 2))
-                            grown[:count] = means[:count]
-                            means = grown
-                            grown_w = np.empty(2 * cap, np.int64)
-                            grown_w[:count] = where[:count]
-                            where = grown_w
-                            cap *= 2
-                        means[count, 0] = accx[pid, kk] / h
-                        means[count, 1] = accy[pid, kk] / h
-                        where[count] = wy * n + wx
-                        code[wy * n + wx] = np.int16(count)
-                        count += 1
+                        cls[w] = _FULL
+                        means[w, 0] = accx[pid, kk] / h
+                        means[w, 1] = accy[pid, kk] / h
     near = np.zeros(n * n, np.uint32)
     if kernel == 1:
         for w in range(n * n):
-            q = code[w]
-            if q == -1:
+            c = cls[w]
+            if c == _BELOW:
                 continue
-            bits = np.uint32(0x10000) if q == -2 else np.uint32(0x10001)
+            bits = np.uint32(0x10001) if c == _FULL else np.uint32(0x10000)
             wy = w // n
             wx = w - wy * n
             # the cell is neighbour (ox, oy) of the cell at (wx - ox, wy - oy)
@@ -136,20 +134,20 @@ def _window(
                     ty = wy - oy
                     if 0 <= ty < n:
                         near[ty * n + tx] |= bits << np.uint32((ox + 1) * 3 + oy + 1)
-    return code, means[:count], wx0, wy0, near, n
+    return cls, means, wx0, wy0, near, n
 
 
 @njit(cache=True)
 def _outside(
     table: I32, accx: F64, accy: F64, hits: I32, visits: I32, ix: int, iy: int
 ) -> tuple[int, float, float]:  # pragma: no cover - compiled
-    """(class, mean x, mean y) of a table cell outside the window (1 full, 2 at, 0 below)."""
+    """(class, mean x, mean y) of a table cell outside the window (classes as in the window)."""
     v, mx, my = cell(table, accx, accy, hits, visits, ix, iy)
     if v > FULLNESS:
-        return 1, mx, my
+        return _FULL, mx, my
     if v == FULLNESS:
-        return 2, 0.0, 0.0
-    return 0, 0.0, 0.0
+        return _AT, 0.0, 0.0
+    return _BELOW, 0.0, 0.0
 
 
 @njit(cache=True)
@@ -192,17 +190,26 @@ def _match(
     cy0: int,
     kernel: int,
     with_likelihood: bool,
+    bound: float,
+    dists: F64,
 ) -> tuple[float, float, int]:  # pragma: no cover - compiled
     """gmapping's score (and likelihoodAndScore): returns (score, log likelihood, matched).
 
     ``beams``: the used beams (:func:`_used_beams`); ``bc``, ``bs``: cos and sin of the beam
     angles (computed once per scan). Per beam, the candidates are the full cells of the
     kernel window around the end point's cell whose cell one ``delta * sqrt(2)`` step back
-    along the beam from the candidate is below the threshold; the first strictly nearest
-    mean wins. With ``kernel`` 1 and the window around the end point inside the window
+    along the beam from the candidate is below the threshold; the beam's distance is that
+    of the nearest candidate mean (gmapping keeps the first strictly nearest: the same
+    distance). With ``kernel`` 1 and the window around the end point inside the window
     (:func:`_window`), the candidates are the set bits of ``full(end cell) & ~notbelow(free
-    cell)`` of the ``near`` masks, visited in the loops' order; else the loops read the
-    window's codes and, beyond it, the patches.
+    cell)`` of the ``near`` masks; else the loops read the window's classes and, beyond it,
+    the patches.
+
+    With a finite ``bound`` (and without the likelihood) it returns ``(-inf, 0, 0)`` as soon
+    as the score cannot exceed ``bound``: the beams' distances go to ``dists`` (scratch, one
+    per used beam) and the bound adds ``min(1, 1 - u + u^2 / 2) >= exp(-u)`` per matched
+    beam, so no ``exp`` is spent on a move that loses; a move that does not lose gets its
+    terms summed in beam order afterwards, the same numbers as without a bound.
     """
     c = math.cos(th)
     s = math.sin(th)
@@ -214,15 +221,24 @@ def _match(
     free_delta = delta * FREE_RATIO
     inv_delta = 1.0 / delta
     no_hit = _NULL_LIKELIHOOD / lsigma
-    code, means, wx0, wy0, near, n = win
+    cls, means, wx0, wy0, near, n = win
     fast = kernel == 1
     total = 0.0
     like = 0.0
     matched = 0
+    nb = beams.shape[0] - 1
+    bounded = bound > -math.inf and not with_likelihood
+    # each term is <= 1 and <= its upper bound; the margin covers the sums' rounding (< nb^2
+    # ulps of terms <= 1) and the bound's rounding (a few ulps per term)
+    bound -= 1e-9 + 1e-15 * nb * nb
+    inv_sigma = 1.0 / sigma
+    upper = 0.0
     for j in range(beams.shape[0]):
         i = beams[j]
         r = ranges[i]
         if r == 0.0 and not with_likelihood:
+            if bounded:
+                dists[j] = -1.0
             continue
         ca = cl * bc[i] - sl * bs[i]
         sa = sl * bc[i] + cl * bs[i]
@@ -242,20 +258,18 @@ def _match(
             t = wcy * n + wcx
             valid = near[t] & ~(near[t + ify * n + ifx] >> np.uint32(16)) & np.uint32(0x1FF)
             best_d = math.inf
-            while valid != 0:
-                b = _lowest_bit(valid)
-                valid &= valid - np.uint32(1)
-                ox = b // 3 - 1
-                oy = b - (ox + 1) * 3 - 1
-                q = code[t + oy * n + ox]
-                mux = hx - means[q, 0]
-                muy = hy - means[q, 1]
-                d = mux * mux + muy * muy
-                take = d < best_d
-                best_d = d if take else best_d
-                bx = mux if take else bx
-                by = muy if take else by
+            if valid != 0:
+                for bb in range(9):
+                    ox = bb // 3 - 1
+                    oy = bb % 3 - 1
+                    q = t + oy * n + ox
+                    mux = hx - means[q, 0]
+                    muy = hy - means[q, 1]
+                    d = mux * mux + muy * muy
+                    take = (((valid >> np.uint32(bb)) & np.uint32(1)) != 0) & (d < best_d)
+                    best_d = d if take else best_d
             found = best_d < math.inf
+            d2 = best_d if found else 0.0
         else:
             for xx in range(-kernel, kernel + 1):
                 for yy in range(-kernel, kernel + 1):
@@ -264,21 +278,22 @@ def _match(
                     wx = prx - wx0
                     wy = pry - wy0
                     if 0 <= wx < n and 0 <= wy < n:
-                        q = code[wy * n + wx]
-                        if q < 0:
+                        if cls[wy * n + wx] != _FULL:
                             continue
-                        mx = means[q, 0]
-                        my = means[q, 1]
+                        mx = means[wy * n + wx, 0]
+                        my = means[wy * n + wx, 1]
                     else:
                         c1, mx, my = _outside(table, accx, accy, hits, visits, prx, pry)
-                        if c1 != 1:
+                        if c1 != _FULL:
                             continue
                     wx += ifx
                     wy += ify
                     if 0 <= wx < n and 0 <= wy < n:
-                        if code[wy * n + wx] != -1:
+                        if cls[wy * n + wx] != _BELOW:
                             continue
-                    elif _outside(table, accx, accy, hits, visits, prx + ifx, pry + ify)[0] != 0:
+                    elif (
+                        _outside(table, accx, accy, hits, visits, prx + ifx, pry + ify)[0] != _BELOW
+                    ):
                         continue
                     mux = hx - mx
                     muy = hy - my
@@ -286,12 +301,25 @@ def _match(
                         bx = mux
                         by = muy
                         found = True
-        d2 = bx * bx + by * by
+            d2 = bx * bx + by * by
+        if bounded:
+            dists[j] = d2 if found else -1.0
+            if found:
+                u = d2 * inv_sigma
+                upper += min(1.0, 1.0 - u + 0.5 * u * u)
+            if upper + (nb - j) < bound:
+                return -math.inf, 0.0, 0
+            continue
         if found:
             total += math.exp(-d2 / sigma)
             matched += 1
         if with_likelihood:
             like += -d2 / lsigma if found else no_hit
+    if bounded:
+        for j in range(beams.shape[0]):
+            if dists[j] >= 0.0:
+                total += math.exp(-dists[j] / sigma)
+                matched += 1
     return total, like, matched
 
 
@@ -347,7 +375,7 @@ def likelihood_and_score(
     return _match(
         win, table, accx, accy, hits, visits, pose[0], pose[1],
         pose[2], ranges, _used_beams(ranges, usable, lskip), np.cos(angles), np.sin(angles),
-        laser, sigma, lsigma, delta, cx0, cy0, kernel, True,
+        laser, sigma, lsigma, delta, cx0, cy0, kernel, True, -math.inf, np.empty(0),
     )  # fmt: skip
 
 
@@ -375,12 +403,14 @@ def _optimize(
     iterations: int,
 ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
     cx, cy, ct = init[0], init[1], init[2]
+    dists = np.empty(beams.shape[0])
     current = _match(
         win, table, accx, accy, hits, visits, cx, cy, ct, ranges,
-        beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False,
+        beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False, -math.inf, dists,
     )[0]  # fmt: skip
     # poses scored so far: a move back onto one of them (bit for bit, as x + d - d often is)
-    # reuses its score, which the same arithmetic would reproduce exactly
+    # reuses its score, which the same arithmetic would reproduce exactly (-inf for an
+    # abandoned move: it stays below the current score, which only grows)
     seen = np.empty((_SEEN, 4))
     seen[0, 0], seen[0, 1], seen[0, 2], seen[0, 3] = cx, cy, ct, current
     n_seen = 1
@@ -418,6 +448,7 @@ def _optimize(
                 sc = _match(
                     win, table, accx, accy, hits, visits, x, y, t,
                     ranges, beams, bc, bs, laser, sigma, 1.0, delta, cx0, cy0, kernel, False,
+                    current, dists,
                 )[0]  # fmt: skip
                 if n_seen < _SEEN:
                     seen[n_seen, 0], seen[n_seen, 1], seen[n_seen, 2] = x, y, t
@@ -528,6 +559,6 @@ def scan_match_all(
         _, like, _ = _match(
             win, table, accx, accy, hits, visits,
             out_poses[p, 0], out_poses[p, 1], out_poses[p, 2], ranges, beams, bc, bs, laser,
-            sigma, lsigma, delta, cx0, cy0, kernel, True,
+            sigma, lsigma, delta, cx0, cy0, kernel, True, -math.inf, np.empty(0),
         )  # fmt: skip
         out_like[p] = like

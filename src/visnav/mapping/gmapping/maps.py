@@ -119,19 +119,18 @@ class ParticleMaps:
         limit: float,
     ) -> None:
         """Add each particle's scan endpoints (ranges <= ``limit``) as hits to its map."""
-        gx0, gy0, gx1, gy1, n = k.hit_cell_bounds(poses, ranges, angles, laser, limit, self.delta)
+        points = k.hit_points(poses, ranges, angles, laser, limit)
+        gx0, gy0, gx1, gy1, n = k.hit_cell_bounds(poses, points, laser, self.delta)
         if n == 0:
             return
         self.ensure_cells(gx0, gy0, gx1, gy1)
         need = k.count_new_patches(
-            self.tables, self.refcount, poses, ranges, angles, laser, limit, self.delta,
-            self.cx0, self.cy0,
-        )  # fmt: skip
+            self.tables, self.refcount, points, self.delta, self.cx0, self.cy0
+        )
         self.reserve(need)
         k.register_hits(
             self.tables, self.accx, self.accy, self.hits, self.visits, self.refcount,
-            self.free, self.free_top, poses, ranges, angles, laser, limit, self.delta,
-            self.cx0, self.cy0,
+            self.free, self.free_top, points, self.delta, self.cx0, self.cy0,
         )  # fmt: skip
 
     def resample(self, indexes: NDArray[np.int64]) -> None:
