@@ -9,14 +9,15 @@ SwiftShader, sharing the machine's cores with the run: ``--no-page`` or no Chrom
 skips that case), each ``--repeats`` times in this one run; the real-time factor is the
 run's own (``summary.json``: simulated / wall seconds of the stepping loop, start-up
 excluded). Reported: the medians and the ratios to the runs without the viewer (goals:
->= 0.9 serving with no page, >= 0.7 with a page), and the run process's CPU seconds per
-simulated second (user + system of the whole run, start-up included; on a loaded
-machine the wall-clock real-time factor swings with the load, the CPU time much less),
-and the CPU seconds per simulated second of the viewer's worker thread (``run.log``).
-The car runs without SLAM so the runs stay short on a loaded machine.
+>= 0.9 serving with no page, >= 0.7 with a page), and CPU seconds per simulated second
+(user + system, start-up included; on a loaded machine the wall-clock real-time factor
+swings with the load, the CPU time much less): of the run with its viewer process, of
+the viewer process alone and of its worker thread (the viewer's ``viewer.log``), and the
+viewer process's peak resident memory. The car runs without SLAM so the runs stay short
+on a loaded machine.
 
-The viewer's ports are fixed (9090 page, 9876 gRPC): another viewer serving there (a
-second ``visnav run --view``) makes the ``--view`` runs fail with that message.
+The ``--view`` runs serve on free ports (``--port 0 --grpc-port 0``), so a viewer serving
+on the fixed defaults (9090 page, 9876 gRPC) does not make them fail.
 
 Bag: a car run with ``--record-images`` is played into the viewer's path (``DisplaySink``:
 display rate, JPEG, worker thread) with the web viewer serving; reported: wall seconds
@@ -77,7 +78,11 @@ class RunResult(NamedTuple):
     rtf: float
     cpu_per_sim_s: float
     worker_cpu_per_sim_s: float | None
-    """The viewer's worker thread (``run.log``'s "viewer: worker CPU" line)."""
+    """The viewer's worker thread (``viewer.log``'s "viewer: worker CPU" line)."""
+    viewer_cpu_per_sim_s: float | None
+    """The viewer process (``viewer.log``'s "viewer process CPU" line)."""
+    viewer_rss_mb: float | None
+    """The viewer process's peak resident memory (``viewer.log``)."""
 
 
 def _open_page(url: str, tmp: Path) -> subprocess.Popen[bytes]:
@@ -96,7 +101,7 @@ def _run(scenario: str, duration: float, out: Path, *, case: str, tmp: Path) -> 
     if scenario == "car":
         cmd.append("--no-slam")
     if case != "none":
-        cmd.append("--view")
+        cmd += ["--view", "--port", "0", "--grpc-port", "0"]
     proc = subprocess.Popen(
         cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=_env(), cwd=tmp
     )
@@ -124,12 +129,19 @@ def _run(scenario: str, duration: float, out: Path, *, case: str, tmp: Path) -> 
         sys.exit(f"{out}: --view wrote run.rrd")
     cpu = usage.ru_utime + usage.ru_stime
     sim_s = max(float(summary["sim_duration_s"]), 1e-9)
-    found = _WORKER_CPU.search(log.read_text()) if (log := out / "run.log").is_file() else None
+    log = (out / "viewer.log").read_text(errors="replace") if case != "none" else ""
+    found = _WORKER_CPU.search(log)
     worker = float(found.group(1)) / sim_s if found else None
-    return RunResult(float(summary["real_time_factor"]), cpu / sim_s, worker)
+    found = _PROCESS.search(log)
+    own = float(found.group(2)) / sim_s if found else None
+    rss = float(found.group(1)) if found else None
+    return RunResult(float(summary["real_time_factor"]), cpu / sim_s, worker, own, rss)
 
 
 _WORKER_CPU = re.compile(r"viewer: worker CPU ([0-9.]+) s")
+_PROCESS = re.compile(
+    r"peak RSS of the viewer process ([0-9.]+) MB.*viewer process CPU ([0-9.]+) s"
+)
 
 
 def _live(args: argparse.Namespace, scenario: str, tmp: Path) -> None:
@@ -148,9 +160,14 @@ def _live(args: argparse.Namespace, scenario: str, tmp: Path) -> None:
             f"{scenario} {args.duration:g} s {label[case]:>19}: RTF {rtf[case]:.3f} "
             f"(runs {each}), CPU {cpu[case]:.2f} s per sim s"
         )
+        owns = [r.viewer_cpu_per_sim_s for r in runs[case] if r.viewer_cpu_per_sim_s is not None]
         workers = [r.worker_cpu_per_sim_s for r in runs[case] if r.worker_cpu_per_sim_s is not None]
-        if workers:
-            line += f" (viewer worker {statistics.median(workers):.3f})"
+        rss = [r.viewer_rss_mb for r in runs[case] if r.viewer_rss_mb is not None]
+        if owns and workers and rss:
+            line += (
+                f" (viewer process {statistics.median(owns):.2f}, its worker thread "
+                f"{statistics.median(workers):.3f}; peak RSS {max(rss):.0f} MB)"
+            )
         if case != "none":
             goal = 0.9 if case == "view" else 0.7
             line += (

@@ -1,8 +1,8 @@
 """The default views of the car, the drone and the TurtleBot3, live and from their bags.
 
-Each scenario runs a few simulated seconds with ``--view``'s live path
-(:class:`~visnav.viz.live_view.LiveView`, serving the web viewer and saving an .rrd) and
-``--record-images``; headless Chromium screenshots the page before the run's viewer
+Each scenario runs a few simulated seconds with ``--view``'s live path (its viewer
+process, :class:`~visnav.viz.view_process.ViewProcess`, serving the web viewer and saving
+an .rrd) and ``--record-images``; headless Chromium screenshots the page before the run's viewer
 closes, then the run's bag goes through ``visnav view``'s path into a second viewer,
 screenshot too. Both recordings are read back by entity path: the world's geometry, the
 robot's meshes, map, scan / cloud, paths and images, with counts. ``VISNAV_SHOTS_DIR=DIR``
@@ -153,34 +153,32 @@ def test_default_view_live_and_from_the_bag(
     from visnav.scenarios import runner
     from visnav.viz import RerunSink, open_viewer
     from visnav.viz.display_sink import DisplaySink
-    from visnav.viz.live_view import LiveView
     from visnav.viz.scene import world_for_bag
     from visnav.viz.sources import feed_bag
+    from visnav.viz.view_process import ViewPorts, ViewProcess
 
     monkeypatch.setenv("ROS_PACKAGE_PATH", str(TB3))  # ROBOTIS' packages, as catkin gives them
     # a graph of its own: another simulation on the machine must not join this one
     monkeypatch.setenv("VISNAV_DOMAIN", str(random.SystemRandom().randint(20_000, 60_000)))
     live_rrd, colour = tmp_path / "live.rrd", {}
 
-    class _Feed:  # the run's --view (same LiveView), also saving, screenshot before it closes
-        def __init__(self, ctx: Any, out_dir: Path, stream: Any) -> None:
-            del out_dir, stream
-            self.view = LiveView(
-                ctx, port=0, grpc_port=0, save=live_rrd, log_path=tmp_path / "viewer.log",
-                sensors_in_use_only=True,
-            )  # fmt: skip
+    class _Feed:  # the run's --view (its viewer process), also saving, screenshot at the end
+        def __init__(self, ctx: Any, out_dir: Path, stream: Any, view: Any = True) -> None:
+            del out_dir, stream, view
+            self.view = ViewProcess(
+                ctx.domain, tmp_path / "viewer.log", ports=ViewPorts(0, 0), save=live_rrd
+            )
 
         def poll(self) -> None:
-            self.view.poll()
+            pass
 
         def close(self) -> None:
             try:
-                self.view.sink.close()  # everything queued is in the viewer
                 assert self.view.url is not None
                 shot = tmp_path / f"viewer-{name}-live.png"
                 colour["live"] = _screenshot(self.view.url, shot)
             finally:
-                self.view.close()
+                assert self.view.close() == 0, (tmp_path / "viewer.log").read_text()[-3000:]
 
     monkeypatch.setattr(runner, "ViewFeed", _Feed)
     out = tmp_path / "run"

@@ -122,6 +122,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     """``visnav view [BAG]``."""
     from visnav.viz import LiveFeed, RerunSink, VizError, feed_bag, open_viewer
     from visnav.viz.display_sink import DisplaySink
+    from visnav.viz.paced_feed import PacedFeed
 
     if args.max_points < 0:
         text = f"--max-points is {args.max_points}: expected 0 (keep all) or a positive count"
@@ -172,7 +173,9 @@ def cmd_view(args: argparse.Namespace) -> int:
                     _serve(args)
             else:
                 with cli_node(args, discover=True) as node:
-                    feed = LiveFeed(rerun_sink, node.context, topics=args.topics)
+                    # paced: the graph's publishers send only what is shown (not --all-frames)
+                    feed_type = LiveFeed if args.all_frames else PacedFeed
+                    feed = feed_type(rerun_sink, node.context, topics=args.topics)
                     sink = DisplaySink(
                         rerun_sink, rates_hz=rates, world_loader=_world_loader(args, feed.node)
                     )

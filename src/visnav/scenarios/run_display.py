@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from visnav.graph.context import Context
 
+if TYPE_CHECKING:
+    from visnav.viz.view_process import ViewPorts
+
 __all__ = ["RunProgress", "ViewFeed"]
+
+_LOG = logging.getLogger("visnav.scenarios")
 
 
 class RunProgress:
@@ -72,21 +78,63 @@ class RunProgress:
 class ViewFeed:
     """``--view``: stream the run to Rerun's web viewer (127.0.0.1:9090), write no recording.
 
-    The viewer's own log goes to ``OUT/viewer.log``; see :class:`visnav.viz.live_view.LiveView`.
+    The viewer runs in a process of its own (:class:`visnav.viz.view_process.ViewProcess`)
+    that subscribes to the run's topics over Zenoh; its log, and the web viewer's, go to
+    ``OUT/viewer.log``. A context without Zenoh (``VISNAV_TRANSPORT=local``) keeps the
+    viewer in this process (:class:`visnav.viz.live_view.LiveView`).
+
+    Args:
+        ctx: the run's graph context.
+        out_dir: the run's output directory (``viewer.log`` goes there).
+        stream: where the page's address is printed.
+        view: the viewer's ports (True: the defaults, 9090 and 9876).
+
+    Raises:
+        VizError: the viewer could not start (a port in use: the port and the option).
     """
 
-    def __init__(self, ctx: Context, out_dir: Path, stream: TextIO) -> None:
-        from visnav.viz.live_view import LiveView  # noqa: PLC0415 - optional extra
+    def __init__(
+        self, ctx: Context, out_dir: Path, stream: TextIO, view: ViewPorts | bool = True
+    ) -> None:
+        from visnav.viz.view_process import ViewPorts, ViewProcess  # noqa: PLC0415
 
-        # the images and clouds the run's nodes use: none rendered for display alone
-        self._view = LiveView(ctx, log_path=out_dir / "viewer.log", sensors_in_use_only=True)
-        stream.write(f"viewer: {self._view.url}\n")
+        ports = view if isinstance(view, ViewPorts) else ViewPorts()
+        log = out_dir / "viewer.log"
+        self._process: ViewProcess | None = None
+        self._view: Any = None
+        self._warned = False
+        if ctx.zenoh is not None:
+            self._process = ViewProcess(ctx.domain, log, ports=ports)
+            url = self._process.url
+        else:  # no other process sees this graph
+            from visnav.viz.live_view import LiveView  # noqa: PLC0415 - optional extra
+
+            self._view = LiveView(
+                ctx,
+                port=ports.port,
+                grpc_port=ports.grpc_port,
+                log_path=log,
+                sensors_in_use_only=True,
+            )
+            url = self._view.url
+        stream.write(f"viewer: {url}\n")
         stream.flush()
 
     def poll(self) -> None:
-        """Subscribe to new topics (the worker thread logs what arrives)."""
-        self._view.poll()
+        """Subscribe to new topics (in-process viewer); say once if the viewer process ended."""
+        if self._view is not None:
+            self._view.poll()
+        elif self._process is not None and not self._warned and not self._process.alive():
+            self._warned = True
+            _LOG.warning(
+                "the viewer process ended (exit code %s) and the run goes on without it; see %s",
+                self._process.process.returncode,
+                self._process.log_path,
+            )
 
     def close(self) -> None:
-        """Stop the feed and the viewer."""
-        self._view.close()
+        """Stop the viewer (its process ends, its ports are free again)."""
+        if self._process is not None:
+            self._process.close()
+        if self._view is not None:
+            self._view.close()

@@ -182,6 +182,16 @@ class DisplaySink:
                 self._cond.notify_all()
         return True
 
+    def period_s(self, msg: Any) -> float:
+        """The display period of ``msg``'s kind in stamp seconds (0: every message is shown).
+
+        A live feed paces its subscriptions with it (see :mod:`visnav.viz.paced_feed`).
+        """
+        type_name = getattr(msg, "__msgtype__", type(msg).__name__)
+        if _is_depth(type_name, msg):
+            type_name = DEPTH
+        return self._periods.get(type_name, 0) / 1e9
+
     def log_error(self, topic: str, type_name: str, reason: str) -> None:
         """Count a message that could not be decoded (see :meth:`RerunSink.log_error`)."""
         self.sink.log_error(topic, type_name, reason)

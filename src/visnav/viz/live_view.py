@@ -5,8 +5,11 @@ viewer on fixed loopback ports (:func:`~visnav.viz.viewer.open_viewer`), a
 :class:`~visnav.viz.RerunSink` behind a :class:`~visnav.viz.display_sink.DisplaySink`
 (display rate, worker thread, JPEG images, decimated clouds), the simulator's world
 geometry (:func:`~visnav.viz.scene.world_from_graph`) and a
-:class:`~visnav.viz.LiveFeed` that subscribes to every topic shown. Nothing is written
-to disk but the viewer's log unless ``save`` is given.
+:class:`~visnav.viz.LiveFeed` that subscribes to every topic shown (with ``paced``, a
+:class:`~visnav.viz.paced_feed.PacedFeed`: the publishers in other processes send only
+the messages shown). Nothing is written to disk but the viewer's log unless ``save`` is
+given. ``visnav run --view`` runs it in a process of its own
+(:mod:`visnav.viz.view_process`).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from types import TracebackType
 
 from visnav.graph.context import Context
 from visnav.viz.display_sink import DisplaySink
+from visnav.viz.paced_feed import PacedFeed
 from visnav.viz.rviz_config import RvizConfig
 from visnav.viz.sink import RerunSink
 from visnav.viz.sources import LiveFeed
@@ -63,6 +67,8 @@ class LiveView:
         rviz: an RViz config (:mod:`visnav.viz.rviz_config`): fixed frame (unless
             ``fixed_frame``), colours, TF axes; pass ``topics=rviz.topics`` to show only
             its enabled displays.
+        paced: pace the display-rated subscriptions (a viewer in another process than
+            the publishers; see :mod:`visnav.viz.paced_feed`).
     """
 
     def __init__(
@@ -82,6 +88,7 @@ class LiveView:
         packages: Mapping[str, str] | None = None,
         sensors_in_use_only: bool = False,
         rviz: RvizConfig | None = None,
+        paced: bool = False,
     ) -> None:
         from visnav.viz.scene import world_from_graph  # noqa: PLC0415 - parameter client
 
@@ -102,7 +109,8 @@ class LiveView:
                 rviz=rviz,
             )
             accept = self._in_use if sensors_in_use_only and topics is None else None
-            self.feed = LiveFeed(rerun_sink, context, topics=topics, accept=accept)
+            feed_type = PacedFeed if paced else LiveFeed
+            self.feed = feed_type(rerun_sink, context, topics=topics, accept=accept)
             node = self.feed.node
             loader = (lambda: world_from_graph(node)) if world else None
             self.sink = DisplaySink(rerun_sink, world_loader=loader)
@@ -137,6 +145,10 @@ class LiveView:
         """Subscribe to new topics, expire data that waited too long for TF."""
         self.feed.scan()
         self.sink.poll()
+
+    def spin_once(self, timeout_s: float = 0.05) -> None:
+        """Run the feed's callbacks (a viewer spinning its own context), rescan when due."""
+        self.feed.spin_once(timeout_s)
 
     def close(self) -> None:
         """Stop the feed, log what is queued, close the viewer (idempotent)."""

@@ -21,6 +21,7 @@ from visnav.graph.clock import Clock, ClockType
 from visnav.graph.node import Node, NodeOptions
 from visnav.graph.param_dataclass import declare_params, param
 from visnav.viz.live_view import LiveView
+from visnav.viz.ports import check_ports
 from visnav.viz.rviz_config import RvizConfigError, load_rviz_config
 from visnav.viz.viewer import DEFAULT_GRPC_PORT, DEFAULT_MEMORY_LIMIT, DEFAULT_WEB_PORT
 
@@ -61,6 +62,14 @@ class ViewerNode(Node):
                 self.get_logger().warning(f"{exc}; showing every topic")
         if rviz is not None and rviz.note:
             self.get_logger().info(rviz.note)
+        if p.web:  # refused naming the parameter to change (the CLI's flags elsewhere)
+            check_ports(
+                p.port,
+                p.grpc_port,
+                port_option="port",
+                grpc_option="grpc_port",
+                node=self.get_fully_qualified_name(),
+            )
         self.view = LiveView(
             self.context,
             web=p.web,

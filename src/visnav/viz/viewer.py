@@ -34,37 +34,27 @@ from typing import IO, Any
 
 from visnav.viz._rerun import rr
 from visnav.viz.errors import VizError
+from visnav.viz.ports import (
+    DEFAULT_GRPC_PORT,
+    DEFAULT_MEMORY_LIMIT,
+    DEFAULT_WEB_PORT,
+    LOOPBACK,
+    check_ports,
+    die_with_parent,
+    free_port,
+)
 
 __all__ = [
     "DEFAULT_GRPC_PORT",
     "DEFAULT_MEMORY_LIMIT",
     "DEFAULT_WEB_PORT",
     "LOOPBACK",
+    "die_with_parent",
     "Viewer",
     "free_port",
     "open_viewer",
     "rerun_executable",
 ]
-
-LOOPBACK = "127.0.0.1"
-"""The only address the web viewer and its gRPC server listen on."""
-
-DEFAULT_WEB_PORT = 9090
-"""The web viewer page's port (Rerun's own default; ``--port`` changes it)."""
-
-DEFAULT_GRPC_PORT = 9876
-"""The gRPC server's port (Rerun's own default; ``--grpc-port`` changes it)."""
-
-DEFAULT_MEMORY_LIMIT = "512MB"
-"""What the gRPC server keeps for late viewers; the oldest data beyond it are dropped."""
-
-
-def free_port(host: str = LOOPBACK) -> int:
-    """Return a TCP port that is free on ``host`` right now (the OS picks it)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 def rerun_executable() -> Path:
@@ -178,18 +168,6 @@ def _has_display() -> bool:
     return True
 
 
-def _check_port(port: int, what: str, option: str) -> None:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        try:
-            s.bind((LOOPBACK, port))
-        except OSError as exc:
-            text = (
-                f"the {what} port {LOOPBACK}:{port} is in use ({exc.strerror}): another viewer "
-                f"(visnav view, visnav run --view) may be serving there; stop it or give {option} N"
-            )
-            raise VizError(text) from None
-
-
 def _start_web(
     web_port: int, grpc_port: int, memory_limit: str, log_path: Path, timeout_s: float
 ) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
@@ -206,9 +184,14 @@ def _start_web(
         "--server-memory-limit",
         memory_limit,
     ]
-    env = {**os.environ, "RERUN_ANALYTICS": "0"}
+    env = {**os.environ, "RERUN_ANALYTICS": "0", "NO_COLOR": "1"}  # a plain-text log
     process = subprocess.Popen(
-        cmd, stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env
+        cmd,
+        stdout=log_file,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        env=env,
+        preexec_fn=die_with_parent(),  # noqa: PLW1509 - one prctl call, looked up before
     )
     try:
         _wait_listening(web_port, process, log_path, timeout_s)
@@ -276,11 +259,7 @@ def open_viewer(
     if web:
         wport = port or free_port()
         gport = grpc_port or free_port()
-        if wport == gport:
-            text = f"--port and --grpc-port are both {wport}: give two different ports"
-            raise VizError(text)
-        _check_port(wport, "web viewer", "--port")
-        _check_port(gport, "viewer's gRPC", "--grpc-port")
+        check_ports(wport, gport)
         default_log = Path(tempfile.gettempdir()) / f"visnav-viewer-{wport}.log"
         log = Path(log_path) if log_path is not None else default_log
         process, log_file = _start_web(wport, gport, memory_limit, log, startup_timeout_s)
