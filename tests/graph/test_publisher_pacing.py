@@ -238,3 +238,20 @@ def test_tracker_leases_and_prunes_subscriptions_gone_paused(domain: int) -> Non
         report("z", 1, b"0")
         assert set(tracker._paused) == {("z", 1)}  # the expired ones were pruned
         tracker.close()
+
+
+def test_a_publish_racing_the_publishers_destruction_sends_nothing_and_raises_nothing(
+    pair: tuple[Node, Node],
+) -> None:
+    """A status publisher of an action server firing from a timer thread while its node is
+    destroyed (a remote subscriber listening) raised zenoh's "Undeclared publisher"."""
+    sender, receiver = pair
+    got: list[String] = []
+    receiver.create_subscription(String, "chatter", got.append, 10)
+    pub = sender.create_publisher(String, "chatter", 10)
+    _wait("the remote subscription", pub.has_listeners)
+    pub.publish(String(data="before"))
+    _wait("the first message", lambda: bool(receiver.context.spin_once(0.01) or got))
+    pub.destroy()
+    pub.publish(String(data="after"))  # from a thread that has not seen the destruction yet
+    assert not pub.has_listeners()

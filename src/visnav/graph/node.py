@@ -400,8 +400,10 @@ class Node:
         if pub in self._publishers:
             self._publishers.remove(pub)
             self.context.remove_publisher(pub)
-            if pub._zpub is not None:
-                pub._zpub.close()
+            with pub._lock:  # a publish from another thread finishes first or sends nothing
+                zpub, pub._zpub = pub._zpub, None
+            if zpub is not None:
+                zpub.close()
             self._retract(pub.entity_id)
 
     def destroy_subscription(self, sub: Subscription[Any]) -> None:
