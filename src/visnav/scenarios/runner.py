@@ -30,10 +30,10 @@ images and point clouds are left out of the scenario bag by default (``record_al
 / ``--record-all`` keeps them, as published): at 640x480 they are ~130 MB per simulated
 second. The simulator's ``/gazebo/model_states`` and ``/gazebo/link_states`` (every body's
 state at every physics step, 500-1000 Hz) are left out too: they were over half of a car
-bag's bytes before compression and ~10 % of a TurtleBot3 run's CPU (the simulator publishes them only while
-subscribed, as gazebo_ros_api_plugin does), and the run's ground truth is already in
-``ground_truth.tum`` and the robot's ground-truth odometry. ``record_images=True`` /
-``--record-images`` keeps the camera images only, so that
+bag's bytes before compression and ~10 % of a TurtleBot3 run's CPU (the simulator
+publishes them only while subscribed, as gazebo_ros_api_plugin does), and the run's
+ground truth is already in ``ground_truth.tum`` and the robot's ground-truth odometry.
+``record_images=True`` / ``--record-images`` keeps the camera images only, so that
 ``visnav view BAG`` shows them beside the 3D view, stored as image_transport's compressed
 transports publish them (``<image topic>/compressed`` JPEG, depth as
 ``<image topic>/compressedDepth`` PNG; :mod:`visnav.bag.image_compression`): the car's bag
