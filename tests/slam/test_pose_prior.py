@@ -133,8 +133,64 @@ def test_odometry_prior_grows_with_the_motion_and_can_be_off() -> None:
         ("odometry_sigma_r_rel", float("nan")),
         ("odometry_sigma_t", "5 mm"),
         ("odometry_sigma_r_per_m", -0.01),
+        ("odometry_sigma_t_lateral", 0.0),
+        ("odometry_model", "ackermann"),
     ],
 )
 def test_bad_odometry_sigmas_are_refused(field: str, value: object) -> None:
     with pytest.raises(SlamInputError, match=field):
         SlamConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def _camera_on_a_ground_robot(x: float, yaw: float) -> np.ndarray:
+    """``T_odom_camera`` of an optical camera (z ahead, y down) on a base at (x, 0, yaw)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    base = np.eye(4)
+    base[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    base[0, 3] = x
+    optical = np.eye(4)
+    optical[:3, :3] = [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
+    optical[:3, 3] = [0.2, 0.0, 0.3]  # ahead of the wheel axle, as the car's camera
+    return base @ optical
+
+
+def test_a_diff_drive_prior_is_tight_only_sideways() -> None:
+    """Driving straight ahead: the optical x axis (sideways, horizontal) is held tighter."""
+    last, now = _camera_on_a_ground_robot(0.0, 0.0), _camera_on_a_ground_robot(0.25, 0.0)
+    omni = odometry_prior(SlamConfig(), np.eye(4), now, last)
+    diff = odometry_prior(SlamConfig(odometry_model="diff"), np.eye(4), now, last)
+    assert omni is not None
+    assert diff is not None
+    cfg = SlamConfig()
+    sigma_t = cfg.odometry_sigma_t + cfg.odometry_sigma_t_rel * 0.25
+    sigma_r = np.radians(cfg.odometry_sigma_r_deg) + cfg.odometry_sigma_r_per_m * 0.25
+    lateral = cfg.odometry_sigma_t_lateral + 0.25 * sigma_r
+    expected = np.diag([lateral**-2, sigma_t**-2, sigma_t**-2] + [sigma_r**-2] * 3)
+    np.testing.assert_allclose(diff.information, expected, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(omni.information, np.diag([sigma_t**-2] * 3 + [sigma_r**-2] * 3))
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    x=st.floats(-2.0, 2.0),
+    yaw=st.floats(-np.pi, np.pi),
+    step=st.floats(0.0, 0.5),
+    turn=st.floats(-0.5, 0.5),
+)
+def test_a_diff_drive_prior_is_never_looser_than_omni(
+    x: float, yaw: float, step: float, turn: float
+) -> None:
+    """Same or tighter in every direction, symmetric and positive definite."""
+    last = _camera_on_a_ground_robot(x, yaw)
+    now = _camera_on_a_ground_robot(x + step * np.cos(yaw), yaw + turn)
+    now[1, 3] += step * np.sin(yaw)
+    omni = odometry_prior(SlamConfig(), np.eye(4), now, last)
+    diff = odometry_prior(SlamConfig(odometry_model="diff"), np.eye(4), now, last)
+    assert omni is not None
+    assert diff is not None
+    np.testing.assert_allclose(diff.information, diff.information.T)
+    assert np.linalg.eigvalsh(diff.information).min() > 0.0
+    assert (
+        np.linalg.eigvalsh(diff.information - omni.information).min()
+        > -1e-6 * np.abs(omni.information).max()
+    )

@@ -452,13 +452,12 @@ def odometry_cost(
         edge_a: (E,) pose index of each factor's first camera.
         edge_b: (E,) pose index of its second camera.
         edge_zinv: (E, 4, 4) inverse of the measured pose of ``b`` in ``a``'s frame.
-        edge_w: (E, 6) diagonal information of the factor's twist (rho, phi).
+        edge_w: (E, 6, 6) information of the factor's twist (rho, phi).
     """
     total = 0.0
     for n in range(len(edge_a)):
         r, _ = _edge_error(poses[edge_a[n]], poses[edge_b[n]], edge_zinv[n])
-        for i in range(6):
-            total += 0.5 * edge_w[n, i] * r[i] * r[i]
+        total += 0.5 * (r @ (edge_w[n] @ r))
     return total
 
 
@@ -488,7 +487,7 @@ def _add_odometry(
         ja = d @ _adjoint(edge_zinv[n])
         jb = -(d @ _adjoint(e))
         w = edge_w[n]
-        wr = w * r
+        wr = w @ r
         for fi, ji in ((fa, ja), (fb, jb)):
             if fi < 0:
                 continue
@@ -498,7 +497,7 @@ def _add_odometry(
                 if fj < 0:
                     continue
                 bj = 6 * fj
-                hpp[bi : bi + 6, bj : bj + 6] += ji.T @ (w[:, None] * jj)
+                hpp[bi : bi + 6, bj : bj + 6] += ji.T @ (w @ jj)
 
 
 @numba.njit(cache=True)

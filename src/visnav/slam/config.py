@@ -67,7 +67,11 @@ class SlamConfig:
     ``odom_alpha1`` / ``odom_alpha2`` in spirit: unequal wheel radii turn the odometry's
     heading while it drives straight): it holds the pose where the matched points do not
     (all of them far down a corridor: a sideways shift and a turn then look alike), and
-    links consecutive keyframes in local bundle adjustment.
+    links consecutive keyframes in local bundle adjustment. ``odometry_model`` ``"diff"``
+    (amcl's ``odom_model_type``) is a base that cannot move sideways: its sideways error
+    (horizontal, across the motion) is only ``odometry_sigma_t_lateral`` m + the distance
+    moved times the heading's standard deviation, where ``"omni"`` (the default) takes the
+    same standard deviation on every axis.
 
     Monocular (``sensor="mono"``, :mod:`visnav.slam.monocular`): keypoints get no
     depth; the map starts from two views (median parallax ``init_min_parallax_deg``,
@@ -135,6 +139,8 @@ class SlamConfig:
     odometry_sigma_r_deg: float = 0.1
     odometry_sigma_r_rel: float = 0.2
     odometry_sigma_r_per_m: float = 0.02
+    odometry_model: Literal["omni", "diff"] = "omni"
+    odometry_sigma_t_lateral: float = 0.001
     sensor: Literal["rgbd", "mono"] = "rgbd"
     mono_scale: Literal["depth", "odometry"] = "depth"
     init_min_parallax_deg: float = 1.0
@@ -158,7 +164,14 @@ class SlamConfig:
         if not self.scale_factor > 1.0:
             text = f"scale_factor is {self.scale_factor!r}: expected a number > 1 (ORB: 1.2)"
             raise SlamInputError(text)
-        for name in ("odometry_sigma_t", "odometry_sigma_r_deg"):
+        if self.odometry_model not in ("omni", "diff"):
+            text = (
+                f"odometry_model is {self.odometry_model!r}: expected 'diff' (a wheeled base that "
+                "cannot move sideways, amcl's odom_model_type diff) or 'omni' (any direction; "
+                "the default)"
+            )
+            raise SlamInputError(text)
+        for name in ("odometry_sigma_t", "odometry_sigma_r_deg", "odometry_sigma_t_lateral"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0.0 and value < float("inf")):
                 default = getattr(SlamConfig, name)

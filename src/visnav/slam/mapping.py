@@ -1,7 +1,8 @@
 """Local mapping steps run when a keyframe is inserted (ORB-SLAM's LocalMapping).
 
 * :func:`create_points`: back-project the keyframe's unmatched keypoints that
-  have depth into new map points;
+  have depth into new map points (close ones first; far ones only while the keyframe
+  has few points, as ORB-SLAM2's ``Tracking::CreateNewKeyFrame``);
 * :func:`cull_recent_points`: drop young points that tracking rarely finds or
   that no second keyframe observes;
 * :func:`fuse_points`: project points into a keyframe and merge duplicates (or
@@ -23,10 +24,36 @@ __all__ = ["create_points", "cull_recent_points", "fuse_points"]
 IntArray = NDArray[np.int64]
 
 
-def create_points(slam_map: SlamMap, kf: Keyframe) -> IntArray:
-    """Create map points from ``kf``'s keypoints that have depth and no map point."""
+def create_points(
+    slam_map: SlamMap, kf: Keyframe, *, close_depth: float | None = None, min_points: int = 100
+) -> IntArray:
+    """Create map points from ``kf``'s keypoints that have depth and no map point.
+
+    Args:
+        slam_map: the map the points join.
+        kf: the keyframe whose keypoints are back-projected.
+        close_depth: None: every keypoint with depth. Else ORB-SLAM2's rule for a new
+            keyframe: keypoints are taken nearest first, and past ``close_depth`` only
+            while fewer than ``min_points`` keypoints (with a map point already or a new
+            one) have been counted. A far depth is poor (its error grows with the square
+            of the range, 4 cm at 5 m for a Kinect-like sensor), and points made from it
+            pull the next poses off where only far points are in view.
+        min_points: see ``close_depth``.
+    """
     f = kf.frame
-    new = np.flatnonzero((f.map_points < 0) & np.isfinite(f.depth))
+    with_depth = np.isfinite(f.depth)
+    new = np.flatnonzero((f.map_points < 0) & with_depth)
+    if close_depth is not None and len(new):
+        order = np.flatnonzero(with_depth)
+        order = order[np.argsort(f.depth[order], kind="stable")]
+        # counted nearest first; the last one taken is the first past close_depth that
+        # brings the count above min_points
+        far = np.flatnonzero(f.depth[order] > close_depth)
+        stop = far[far >= min_points]
+        cut = int(stop[0]) + 1 if len(stop) else len(order)
+        keep = np.zeros(len(f.depth), dtype=bool)
+        keep[order[:cut]] = True
+        new = new[keep[new]]
     if len(new) == 0:
         return np.zeros(0, dtype=np.int64)
     pw = transform(kf.t_wc, f.points_c[new])

@@ -231,6 +231,8 @@ class SlamNode(Node):
             odometry_sigma_r_deg=prm.odometry_sigma_r_deg,
             odometry_sigma_r_rel=prm.odometry_sigma_r_rel,
             odometry_sigma_r_per_m=prm.odometry_sigma_r_per_m,
+            odometry_model=prm.odometry_model,  # type: ignore[arg-type]
+            odometry_sigma_t_lateral=prm.odometry_sigma_t_lateral,
         )
         self.worker: SlamWorker | None = None
         self._worker_failure: str | None = None

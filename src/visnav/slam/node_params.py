@@ -50,6 +50,14 @@ class SlamParams:
     odometry_sigma_r_per_m: float = param(
         SlamConfig.odometry_sigma_r_per_m, description="rad: odometry heading sigma per m moved"
     )
+    odometry_model: str = param(
+        SlamConfig.odometry_model,
+        description="diff: a wheeled base that cannot move sideways (amcl's odom_model_type); omni",
+    )
+    odometry_sigma_t_lateral: float = param(
+        SlamConfig.odometry_sigma_t_lateral,
+        description="m: diff odometry's sideways sigma at rest (+ distance x heading sigma)",
+    )
     force_3dof: bool = param(
         False, description="map -> odom keeps the base level: x, y, yaw only (Reg/Force3DoF)"
     )

@@ -327,7 +327,8 @@ def _solve_compiled(
     edge_zinv = np.ascontiguousarray(
         np.array([inverse(e.t_ij) for _, _, e in pr.odometry]).reshape(n_edges, 4, 4)
     )
-    edge_w = np.array([e.sigmas**-2 for _, _, e in pr.odometry]).reshape(n_edges, 6)
+    infos = [e.information for _, _, e in pr.odometry]
+    edge_w = np.ascontiguousarray(np.array(infos, dtype=np.float64).reshape(n_edges, 6, 6))
     t_cw, positions, before, after = levenberg_marquardt_odometry(
         pr.t_cw,
         pr.positions,
@@ -379,9 +380,9 @@ def _solve_gtsam(
         else:
             meas2 = np.array([u, v])
             graph.add(gtsam.GenericProjectionFactorCal3_S2(meas2, models.mono[lvl], k, key, k_mono))
+    swap = np.r_[3:6, 0:3]
     for a, b, edge in pr.odometry:  # gtsam's Pose3 tangent is (rotation, translation)
-        sigmas = np.concatenate([edge.sigmas[3:], edge.sigmas[:3]])
-        model = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+        model = gtsam.noiseModel.Gaussian.Information(edge.information[np.ix_(swap, swap)])
         graph.add(gtsam.BetweenFactorPose3(a, b, gtsam.Pose3(edge.t_ij), model))
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(int(iterations))

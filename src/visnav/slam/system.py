@@ -594,7 +594,7 @@ class SlamSystem(SystemOutputs):
         kp, pts = np.flatnonzero(frame.map_points >= 0), frame.map_points[frame.map_points >= 0]
         for p, k in zip(pts.tolist(), kp.tolist(), strict=True):
             m.observations[p][kf.id] = k
-        create_points(m, kf)
+        create_points(m, kf, close_depth=self.config.close_depth)
         self._store_cloud(kf, depth_m, colour)
         m.update_connections(kf)
         if self._mono is not None:
