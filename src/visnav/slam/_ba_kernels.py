@@ -606,5 +606,5 @@ def levenberg_marquardt(
     no_edges = np.zeros(0, dtype=np.int64)
     return levenberg_marquardt_odometry(
         poses, points, obs_kf, obs_pt, meas, stereo, info, cam, k_mono, k_stereo, fixed,
-        iterations, no_edges, no_edges, np.zeros((0, 4, 4)), np.zeros((0, 6)),
+        iterations, no_edges, no_edges, np.zeros((0, 4, 4)), np.zeros((0, 6, 6)),
     )  # fmt: skip
