@@ -88,9 +88,7 @@ def test_compiled_scores_equal_the_plain_python_loop(synthetic_room: SimpleNames
                 maps, 0, tuple(pose), ranges, ANGLES, tuple(LASER), usable=USABLE, sigma=SIGMA,
                 lsigma=LSIGMA, kernel=kernel, lskip=lskip,
             )  # fmt: skip
-            assert got[2] == want[2]
-            assert got[0] == pytest.approx(want[0], rel=1e-12, abs=1e-12)
-            assert got[1] == pytest.approx(want[1], rel=1e-12, abs=1e-12)
+            assert got == want  # bit for bit: the same arithmetic in the same order
 
 
 def test_compiled_optimize_equals_the_plain_python_loop(synthetic_room: SimpleNamespace) -> None:
@@ -100,7 +98,7 @@ def test_compiled_optimize_equals_the_plain_python_loop(synthetic_room: SimpleNa
     init = (truth[0] + 0.04, truth[1] - 0.03, truth[2] + 0.02)
     got = _optimize(maps, init, ranges)
     want = optimize_py(maps, 0, init, ranges, ANGLES, tuple(LASER), usable=USABLE, sigma=SIGMA)
-    assert got == pytest.approx(want, abs=1e-12)
+    assert got == want  # bit for bit
 
 
 def test_a_write_to_a_shared_patch_copies_it(synthetic_room: SimpleNamespace) -> None:
@@ -127,18 +125,20 @@ def test_a_bounded_score_is_exact_or_below_the_bound(synthetic_room: SimpleNames
         maps.tables[0], maps.accx, maps.accy, maps.hits, maps.visits, lx, ly, USABLE,
         maps.delta, maps.cx0, maps.cy0, 1,
     )  # fmt: skip
-    beams = k._used_beams(ranges, USABLE, 0)
-    dists = np.empty(len(beams))
+    rcs = k._beam_table(ranges, k._used_beams(ranges, USABLE, 0), ANGLES)
+    dists = np.empty(rcs.shape[1])
+    geo = np.empty((4, rcs.shape[1]))
     rng = np.random.default_rng(3)
     abandoned = kept = 0
     for _ in range(20):
         x, y, t = np.array(TRUE) + rng.normal(0.0, [0.03, 0.03, 0.03])
 
         def match(bound: float, x: float = x, y: float = y, t: float = t) -> float:
+            k._beam_geometry(t, rcs, LASER, maps.delta, geo)
             return float(
                 k._match(
                     win, maps.tables[0], maps.accx, maps.accy, maps.hits, maps.visits, x, y, t,
-                    ranges, beams, np.cos(ANGLES), np.sin(ANGLES), LASER, SIGMA, 1.0,
+                    rcs, geo, LASER, SIGMA, 1.0,
                     maps.delta, maps.cx0, maps.cy0, 1, False, bound, dists,
                 )[0]
             )  # fmt: skip
