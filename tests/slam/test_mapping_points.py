@@ -90,3 +90,16 @@ def test_the_points_made_are_orb_slam2s(
     m, kf = _keyframe_with(arr, tracked)
     create_points(m, kf, close_depth=close, min_points=min_points)
     assert _made(kf, tracked) == _orb_slam2(arr, tracked, close, min_points)
+
+
+def test_the_rule_is_off_by_default_and_a_bad_limit_is_refused() -> None:
+    import pytest
+
+    from visnav.slam.config import SlamConfig
+    from visnav.slam.errors import SlamInputError
+
+    assert SlamConfig().far_point_limit is None
+    assert SlamConfig(far_point_limit=100).far_point_limit == 100
+    for bad in (-1, 2.5, True):
+        with pytest.raises(SlamInputError, match="far_point_limit"):
+            SlamConfig(far_point_limit=bad)  # type: ignore[arg-type]

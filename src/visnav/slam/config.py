@@ -26,7 +26,12 @@ class SlamConfig:
     Depth weighting: ``depth_noise`` k models the depth standard deviation as
     ``k * z^2`` metres (structured-light sensors ~0.0015, simulated depth less);
     it sets the virtual stereo baseline ``bf = 1 / k`` used by the optimisers.
-    ``close_depth`` (m) is the limit of "close" points in the keyframe rule.
+    ``close_depth`` (m) is the limit of "close" points in the keyframe rule, and with
+    ``far_point_limit`` N of the points a new keyframe makes: nearest first, and past
+    ``close_depth`` only until N keypoints (with a map point or a new one) are counted
+    (ORB-SLAM2's ``Tracking::CreateNewKeyFrame``, N = 100); None (the default): every
+    keypoint with depth makes a point (visnav makes far points from no other source: it
+    does not triangulate between RGB-D keyframes as ORB-SLAM2 does).
 
     Tracking: ``search_radius`` (px) for the motion-model search, ``local_radius``
     for the local-map search, ``min_inliers`` to count a frame as tracked
@@ -99,6 +104,7 @@ class SlamConfig:
     depth_scale: float | None = None
     depth_noise: float = 0.0004
     close_depth: float = 3.0
+    far_point_limit: int | None = None
     search_radius: float = 15.0
     local_radius: float = 4.0
     min_inliers: int = 30
@@ -157,6 +163,14 @@ class SlamConfig:
                 default = getattr(SlamConfig, name)
                 text = f"{name}{flag} is {value!r}: expected a positive integer (default {default})"
                 raise SlamInputError(text)
+        limit = self.far_point_limit
+        bad_limit = not isinstance(limit, int) or isinstance(limit, bool) or limit < 0
+        if limit is not None and bad_limit:
+            text = (
+                f"far_point_limit is {limit!r}: expected None (every depth makes a point) or "
+                "keypoints >= 0 (ORB-SLAM2: 100)"
+            )
+            raise SlamInputError(text)
         delay = self.global_ba_delay
         if not isinstance(delay, int) or isinstance(delay, bool) or delay < 0:
             text = f"global_ba_delay is {delay!r}: expected frames >= 0 (0: inline, the default)"

@@ -232,6 +232,7 @@ class SlamNode(Node):
             odometry_sigma_r_rel=prm.odometry_sigma_r_rel,
             odometry_sigma_r_per_m=prm.odometry_sigma_r_per_m,
             odometry_model=prm.odometry_model,  # type: ignore[arg-type]
+            far_point_limit=None if prm.far_point_limit < 0 else prm.far_point_limit,
             odometry_sigma_t_lateral=prm.odometry_sigma_t_lateral,
         )
         self.worker: SlamWorker | None = None

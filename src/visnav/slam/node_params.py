@@ -65,6 +65,11 @@ class SlamParams:
         0.1, description="s of clock time a frame waits for odom -> base at its stamp"
     )
     n_features: int = param(1000, description="ORB features per frame")
+    far_point_limit: int = param(
+        -1,
+        description="keypoints past 3 m make points only until this many counted "
+        "(ORB-SLAM2: 100); -1: every depth",
+    )
     seed: int = param(0, description="random seed")
     loop_closure: bool = param(True, description="detect and close loops")
     global_ba_after_loop: bool = param(

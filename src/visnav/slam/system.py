@@ -594,7 +594,10 @@ class SlamSystem(SystemOutputs):
         kp, pts = np.flatnonzero(frame.map_points >= 0), frame.map_points[frame.map_points >= 0]
         for p, k in zip(pts.tolist(), kp.tolist(), strict=True):
             m.observations[p][kf.id] = k
-        create_points(m, kf, close_depth=self.config.close_depth)
+        if cfg.far_point_limit is None:
+            create_points(m, kf)
+        else:
+            create_points(m, kf, close_depth=cfg.close_depth, min_points=cfg.far_point_limit)
         self._store_cloud(kf, depth_m, colour)
         m.update_connections(kf)
         if self._mono is not None:
