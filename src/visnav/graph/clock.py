@@ -58,6 +58,8 @@ class Clock:
         self._sim_enabled = False
         self._sim_ns = 0
         self._lock = threading.Lock()
+        self.sim_changes = 0
+        """Counts sim time settings and switches (a cheap "has sim time moved?" for executors)."""
 
     @property
     def clock_type(self) -> ClockType:
@@ -73,11 +75,13 @@ class Clock:
         """Make a ROS_TIME clock follow ``/clock`` (``use_sim_time``)."""
         if self._type is ClockType.ROS_TIME:
             self._sim_enabled = enabled
+            self.sim_changes += 1
 
     def set_sim_time_ns(self, ns: int) -> None:
         """Set the sim time (called by the ``/clock`` subscription). Time may jump backwards."""
         with self._lock:
             self._sim_ns = int(ns)
+            self.sim_changes += 1
 
     def now_ns(self) -> int:
         """Return the current time in integer nanoseconds."""

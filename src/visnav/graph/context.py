@@ -67,6 +67,7 @@ from visnav.graph.keys import (
 )
 from visnav.graph.message_info import MessageInfo
 from visnav.graph.query_routes import QueryRoutes
+from visnav.graph.timer_poll import TimerPoll
 from visnav.graph.token_declarer import DeferredToken, TokenDeclarer
 from visnav.graph.transport import TransportConfig, ZenohTransport, resolve_domain
 
@@ -135,7 +136,8 @@ class Context:
         self._services: dict[str, tuple[Service[Any, Any], ...]] = {}
         self._graph_cond = threading.Condition()
         self._declarer: TokenDeclarer | None = None
-        self._timers: list[Timer] = []
+        self._timer_poll = TimerPoll()  # which timers are due, cheaply (timer_poll.py)
+        self._timers: list[Timer] = self._timer_poll.timers
         self.faults = FaultBoundary()
         """Callback errors so far (per callback) and the nodes' error policies."""
         self._nodes: list[Node] = []
@@ -327,13 +329,13 @@ class Context:
     def add_timer(self, timer: Timer) -> None:
         """Called by :class:`Node`: schedule a timer."""
         with self._lock:
-            self._timers.append(timer)
+            self._timer_poll.add(timer)
             self._signal()
 
     def remove_timer(self, timer: Timer) -> None:
         """Called by :class:`Node`: unschedule a timer."""
-        with self._lock, contextlib.suppress(ValueError):
-            self._timers.remove(timer)
+        with self._lock:
+            self._timer_poll.remove(timer)
 
     # ------------------------------------------------------------------ delivery
     def deliver_local(self, pub: Publisher[Any], msg: Any) -> None:
@@ -363,9 +365,11 @@ class Context:
         if wake:
             self._inbox.put(None)
 
-    def wake(self) -> None:
-        """Wake a waiting :meth:`spin_once` (e.g. after a clock change)."""
+    def wake(self, *, timers: bool = False) -> None:
+        """Wake a waiting :meth:`spin_once` (e.g. after a clock change; ``timers``: a reset)."""
         with self._lock:
+            if timers:  # a timer's deadline moved: the cheap due check starts afresh
+                self._timer_poll.invalidate()
             self._signal()
 
     def _on_graph_change(self) -> None:
@@ -573,29 +577,20 @@ class Context:
             self._queued.add(entity)
             self._ready.append(entity)
 
-    def _wall_wait_s(self) -> float | None:
-        waits = [w for t in self._timers if (w := t.wall_wait_s()) is not None]
-        return max(0.0, min(waits)) if waits else None
-
-    def _poll_timers(self) -> None:
-        """Put the timers that are due (and not in the ring) at its back, in deadline order."""
-        queued = self._queued
-        due = [t for t in self._timers if t not in queued and t.is_ready()]
-        if due:
-            due.sort(key=lambda t: (t.next_call_ns, t.entity_id))
-            for timer in due:
-                self._schedule(timer)
-
-    def _take(self) -> tuple[_Entity, Callable[[], None]] | None:
+    def _take(self, poll: bool = True) -> tuple[_Entity, Callable[[], None]] | None:
         """With the lock held: the next callback from the ready ring (due timers joined first)."""
+        if self._shutdown:
+            return None
         if not self._inbox.empty():
             self._drain_inbox()
-        if self._timers:
-            self._poll_timers()
+        if poll and self._timers:  # the due ones join the ring's back in deadline order
+            for timer in self._timer_poll.due(self._queued):
+                self._schedule(timer)
         ready = self._ready
         while ready:
             entity = ready.popleft()
             self._queued.discard(entity)
+            self._timer_poll.taken(entity)
             call = entity.take_call()
             if call is not None:
                 self._running = entity
@@ -614,7 +609,7 @@ class Context:
             remaining = None if deadline is None else deadline - time.monotonic()
             if remaining is not None and remaining <= 0:
                 return None
-            wait = self._wall_wait_s()
+            wait = self._timer_poll.wall_wait_s()
             if wait is not None and (remaining is None or wait < remaining):
                 remaining = wait
             self._sleep(remaining)
@@ -639,6 +634,10 @@ class Context:
         Raises:
             CallbackError: the callback raised and its node's error policy is ``"raise"``.
         """
+        return self._spin_one(timeout_s, True)
+
+    def _spin_one(self, timeout_s: float | None, poll: bool) -> bool:
+        """:meth:`spin_once`; ``poll=False`` (no waiting): the timers were polled just now."""
         lock = self._lock
         with lock:
             if self._spinning:
@@ -646,7 +645,7 @@ class Context:
                 raise GraphError(msg)
             self._spinning = True
             try:
-                taken = self._take_or_wait(timeout_s)
+                taken = self._take_or_wait(timeout_s) if poll else self._take(False)
             finally:
                 if self._running is None:
                     self._spinning = False
@@ -664,16 +663,16 @@ class Context:
                 self._spinning = False
                 self._running = None
                 # timers that fell due during the callback go before the busy entity
-                if self._timers:
-                    self._poll_timers()
+                for timer in self._timer_poll.due(self._queued) if self._timers else ():
+                    self._schedule(timer)
                 if entity.pending():
                     self._schedule(entity)
         return True
 
     def spin_some(self, max_callbacks: int | None = None) -> int:
-        """Run the callbacks that are ready now, without waiting; return how many ran."""
+        """Run the ready callbacks, without waiting (timers polled once between two); count them."""
         count = 0
-        while (max_callbacks is None or count < max_callbacks) and self.spin_once(0.0):
+        while (max_callbacks is None or count < max_callbacks) and self._spin_one(0.0, count == 0):
             count += 1
         return count
 

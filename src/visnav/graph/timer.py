@@ -90,7 +90,7 @@ class Timer:
         """Restart: next call one period from now."""
         self._canceled = False
         self.next_call_ns = self.clock.now_ns() + self.timer_period_ns
-        self.node.context.wake()
+        self.node.context.wake(timers=True)
 
     def destroy(self) -> None:
         """Remove the timer."""

@@ -89,6 +89,8 @@ class ContactSensor(SimPlugin):
         robot_bodies = np.asarray(model.body_rootid) == self._root
         # per geom: does it belong to the robot (contacts are filtered with numpy)
         self._robot_geom = robot_bodies[np.asarray(model.geom_bodyid)]
+        self._robot_list: list[bool] = self._robot_geom.tolist()
+        self._shapes = [_SHAPES.get(int(t), "other") for t in model.geom_type]  # per geom
         self._labels: dict[int, str] = {}  # geom -> label, filled on first contact
 
     def _label(self, geom: int) -> str:
@@ -109,31 +111,33 @@ class ContactSensor(SimPlugin):
         statuses: list[Any] = []
         ncon = int(data.ncon)
         if ncon:
+            # plain Python values: for a handful of contacts numpy calls cost more
             contacts = data.contact
-            g1 = np.asarray(contacts.geom1[:ncon])
-            g2 = np.asarray(contacts.geom2[:ncon])
-            in1 = self._robot_geom[g1]
-            mixed = np.flatnonzero(in1 != self._robot_geom[g2])  # robot vs the rest only
-            if len(mixed):
-                pos = np.asarray(contacts.pos[:ncon])[mixed].tolist()
-                depth = (-np.asarray(contacts.dist[:ncon])[mixed]).tolist()
-                types = self._model.geom_type
+            robot = self._robot_list
+            g1 = contacts.geom1.tolist()
+            g2 = contacts.geom2.tolist()
+            mixed = [k for k in range(ncon) if robot[g1[k]] != robot[g2[k]]]  # robot vs rest
+            if mixed:
+                pos = contacts.pos.tolist()
+                dist = contacts.dist.tolist()
+                shapes, label = self._shapes, self._label
                 kv, status = self._key_value, self._status
-                for i, k in enumerate(mixed.tolist()):
-                    a, b = int(g1[k]), int(g2[k])
-                    own, other = (a, b) if in1[k] else (b, a)
-                    x, y, z = pos[i]
+                for k in mixed:
+                    a, b = g1[k], g2[k]
+                    own, other = (a, b) if robot[a] else (b, a)
+                    x, y, z = pos[k]
+                    depth = -dist[k]
                     statuses.append(
                         status(
                             level=0,
-                            name=self._label(own),
-                            message=_SHAPES.get(int(types[other]), "other"),
-                            hardware_id=self._label(other),
+                            name=label(own),
+                            message=shapes[other],
+                            hardware_id=label(other),
                             values=[
                                 kv(key="x", value=f"{x:.6g}"),
                                 kv(key="y", value=f"{y:.6g}"),
                                 kv(key="z", value=f"{z:.6g}"),
-                                kv(key="depth", value=f"{depth[i]:.6g}"),
+                                kv(key="depth", value=f"{depth:.6g}"),
                             ],
                         )
                     )

@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from visnav.description.rigid import matrix_to_quat_xyzw, rpy_to_matrix
-from visnav.msgs.types import Imu
+from visnav.msgs.types import Imu, Quaternion, Vector3
 from visnav.sim.plugin_factories import RobotBuild
-from visnav.sim.plugins import SENSOR_QOS, SimPlugin, _header, _quaternion, _vector
+from visnav.sim.plugins import SENSOR_QOS, SimPlugin, _header
 from visnav.sim.sensor_timing import SensorClock
 from visnav.sim.vehicles._state import BodyReader
 
@@ -106,28 +106,34 @@ class ImuModelPlugin(SimPlugin):
         if not self._subscribed():
             self._last = None
             return
-        state = self._body.read(data)
+        state = self._body.read(data)  # fresh arrays: kept without copies below
         rot = self._offset @ state.rotation
-        linear = np.asarray(state.linear, dtype=np.float64)
-        accel = np.zeros(3)
-        if self._last is not None and now_ns > self._last[0]:
-            accel = (linear - self._last[1]) / ((now_ns - self._last[0]) * 1e-9)
-        self._last = (now_ns, linear.copy())
-        angular = np.asarray(state.angular, dtype=np.float64)
+        linear = state.linear
+        last = self._last
+        if last is not None and now_ns > last[0]:
+            accel = (linear - last[1]) / ((now_ns - last[0]) * 1e-9)
+        else:
+            accel = np.zeros(3)
+        self._last = (now_ns, linear)
+        angular = state.angular
         sigma = self.spec.gaussian_noise
         if sigma > 0.0:
             angular = angular + self._rng.normal(0.0, sigma, 3)
             accel = accel + self._rng.normal(0.0, sigma, 3)
         self.samples += 1
+        cov = self._cov
+        qx, qy, qz, qw = matrix_to_quat_xyzw(rot)
+        gx, gy, gz = (rot.T @ angular).tolist()
+        ax, ay, az = (rot.T @ accel).tolist()
         self._pub.publish(
             Imu(
                 header=_header(now_ns, self.spec.frame_id),
-                orientation=_quaternion(matrix_to_quat_xyzw(rot)),
-                orientation_covariance=self._cov.copy(),
-                angular_velocity=_vector(rot.T @ angular),
-                angular_velocity_covariance=self._cov.copy(),
-                linear_acceleration=_vector(rot.T @ accel),
-                linear_acceleration_covariance=self._cov.copy(),
+                orientation=Quaternion(x=qx, y=qy, z=qz, w=qw),
+                orientation_covariance=cov.copy(),
+                angular_velocity=Vector3(x=gx, y=gy, z=gz),
+                angular_velocity_covariance=cov.copy(),
+                linear_acceleration=Vector3(x=ax, y=ay, z=az),
+                linear_acceleration_covariance=cov.copy(),
             )
         )
 
