@@ -55,6 +55,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "<topic>/compressedDepth (PNG), as image_transport publishes them (visnav run "
         "--record-images does this)",
     )
+    p.add_argument(
+        "--image-transport",
+        nargs="+",
+        action="extend",
+        default=None,
+        metavar="NAME=VALUE",
+        help="image_transport plugin parameters for --compress-images (which it implies): "
+        "compressed.jpeg_quality, compressed.png_level, compressedDepth.format (png, rvl), "
+        "compressedDepth.png_level, compressedDepth.depth_max, "
+        "compressedDepth.depth_quantization",
+    )
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("info", help="summarise a bag")
@@ -141,7 +152,7 @@ class _StopFlag:
 
 def cmd_record(args: argparse.Namespace) -> int:
     """``bag record``."""
-    from visnav.bag.image_compression import ImageCompression
+    from visnav.bag.image_compression import image_transport_from_args
     from visnav.bag.recorder import BagRecorder, compile_exclude
     from visnav.bag.writer import format_for_output
     from visnav.graph.context import Context
@@ -153,6 +164,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         msg = f"-x/--exclude {args.exclude!r} needs -a (it filters the topics -a records)"
         raise RecordError(msg)
     compile_exclude(args.exclude)  # a bad pattern fails before anything is opened
+    compress = args.compress_images or bool(args.image_transport)
+    transport = image_transport_from_args(args.image_transport) if compress else None
     if not 1.0 <= args.buffsize <= 1 << 20:
         msg = f"--buffsize is {args.buffsize} MiB: expected 1 to 1048576"
         raise RecordError(msg)
@@ -169,7 +182,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             include_hidden=args.include_hidden_topics,
             use_sim_time=args.use_sim_time,
             buffer_bytes=round(args.buffsize * (1 << 20)),
-            image_transport=ImageCompression() if args.compress_images else None,
+            image_transport=transport,
         )
         recorder.start()
         try:

@@ -6,7 +6,9 @@ import argparse
 import sys
 from typing import Any
 
+from visnav.bag.image_compression import image_transport_from_args
 from visnav.outpaths import check_output_dir
+from visnav.perception.transport_codecs import ImageTransportError
 from visnav.scenarios.run_control import RunInterrupt
 from visnav.scenarios.runner import SCENARIOS, format_summary, run_scenario
 from visnav.scenarios.saved_map import MAP_LOCALIZATIONS, saved_map_launch_args
@@ -43,6 +45,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="record the camera images raw (sensor_msgs/Image: the car's bag ~6x bigger, "
         "34 MB per simulated second); implies --record-images",
+    )
+    parser.add_argument(
+        "--image-transport",
+        nargs="+",
+        action="extend",
+        default=None,
+        metavar="NAME=VALUE",
+        help="image_transport plugin parameters of the recorded images: "
+        "compressed.jpeg_quality (80), compressed.png_level (9), compressedDepth.format "
+        "(png or rvl), compressedDepth.png_level (1), compressedDepth.depth_max (10), "
+        "compressedDepth.depth_quantization (100); implies --record-images",
     )
     parser.add_argument("--realtime", action="store_true", help="pace to the wall clock")
     parser.add_argument(
@@ -131,6 +144,13 @@ def _run(args: argparse.Namespace, interrupt: RunInterrupt) -> dict[str, Any]:
     if args.out is not None:
         check_output_dir(args.out, what="the run's output directory (--out)")
     view = _view_ports(args)
+    image_transport = image_transport_from_args(args.image_transport)
+    if args.raw_images and args.image_transport:
+        text = (
+            "--image-transport sets how images are compressed, --raw-images stores them raw: "
+            "give one of the two"
+        )
+        raise ImageTransportError(text)
     from visnav.graph.context import Context
 
     launch_args = (
@@ -147,8 +167,9 @@ def _run(args: argparse.Namespace, interrupt: RunInterrupt) -> dict[str, Any]:
         duration_s=args.duration,
         out=args.out,
         record_all=args.record_all,
-        record_images=args.record_images or args.raw_images,
+        record_images=args.record_images or args.raw_images or bool(args.image_transport),
         raw_images=args.raw_images,
+        image_transport=image_transport,
         realtime=args.realtime,
         view=view,
         slam=not args.no_slam,

@@ -24,9 +24,21 @@ __all__ = [
     "LaunchDescription",
     "NodeSpec",
     "check_param_value",
+    "default_process",
 ]
 
 PROCESS_KINDS = ("shared", "own")
+OWN_PROCESS_EXECUTABLES = frozenset({"viz"})
+"""Node types that run in a process of their own unless their entry says ``process: shared``:
+the viewer, whose TF placement, image encoding and Rerun calls would otherwise compete with
+the shared nodes (and a lock-step simulation) for one interpreter."""
+
+
+def default_process(executable: str) -> str:
+    """The process kind of a node entry that does not name one: ``own`` or ``shared``."""
+    return "own" if executable in OWN_PROCESS_EXECUTABLES else "shared"
+
+
 ON_ERROR = ("log", "restart", "shutdown")
 """What an exception in a node's callback does: log it and go on, restart the node's
 process, or stop the launch."""

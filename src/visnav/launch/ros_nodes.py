@@ -49,7 +49,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from visnav.launch.description import NodeSpec
+from visnav.launch.description import NodeSpec, default_process
 from visnav.launch.ros_control_nodes import CONTROLLER_TRANSLATORS
 from visnav.launch.ros_gazebo import (
     EMPTY_WORLD_ARGS,
@@ -180,7 +180,7 @@ class RosNode:
             "namespace": self.namespace,
             "params": dict(params),
             "remaps": self.remaps,
-            "process": "own" if self.respawn else "shared",
+            "process": "own" if self.respawn else default_process(executable),
             "respawn": self.respawn,
             "respawn_delay": self.respawn_delay,
             "required": self.required,

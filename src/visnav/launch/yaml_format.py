@@ -29,6 +29,7 @@ from visnav.launch.description import (
     LaunchDescription,
     NodeSpec,
     check_param_value,
+    default_process,
 )
 from visnav.launch.errors import LaunchArgError, LaunchParseError, where
 from visnav.launch.substitutions import has_substitution, substitute
@@ -475,7 +476,7 @@ class _YamlInterpreter:
             process = self.process(body["process"], scope, line)
         else:
             own = respawn or on_error == "restart"
-            process = "own" if own else (scope.process or "shared")
+            process = "own" if own else (scope.process or default_process(executable))
         delay = self.number(body.get("respawn_delay", 0.0), scope, line, "respawn_delay")
         retries: int | None = None
         if body.get("respawn_max_retries") is not None:

@@ -255,6 +255,7 @@ def run_scenario(
     record_all: bool = False,
     record_images: bool = False,
     raw_images: bool = False,
+    image_transport: ImageCompression | None = None,
     realtime: bool = False,
     view: bool | ViewPorts = False,
     slam: bool = True,
@@ -278,6 +279,8 @@ def run_scenario(
         record_images: also record the camera images (not the point clouds), compressed
             (``<topic>/compressed``, depth ``<topic>/compressedDepth``).
         raw_images: with ``record_images``, store the images raw instead.
+        image_transport: how compressed images are stored (image_transport's plugin
+            parameters); None: the plugins' defaults.
         realtime: pace the simulation to the wall clock.
         view: stream the run to the Rerun viewer (needs ``visnav[viz]``), in a process of
             its own; a :class:`~visnav.viz.view_process.ViewPorts` sets its ports.
@@ -343,6 +346,7 @@ def run_scenario(
         launch_file=None if sdef is not None else str(path),
         interrupt=interrupt,
         raw_images=raw_images,
+        image_transport=image_transport or ImageCompression(),
     )
     try:
         with kernel_compilation_notice():
@@ -374,6 +378,7 @@ class _RunState:
     launch_file: str | None
     interrupt: RunInterrupt | None
     raw_images: bool = False
+    image_transport: ImageCompression = dataclasses.field(default_factory=ImageCompression)
     bag_images: str = "none"
     status: str = "completed"
     error: str = ""
@@ -522,7 +527,7 @@ def _loop(
         exclude=exclude,
         use_sim_time=True,
         topic_log_level=logging.DEBUG,
-        image_transport=ImageCompression() if compressed else None,
+        image_transport=state.image_transport if compressed else None,
     )
     recorder.start()
     state.bag = bag_path
