@@ -148,7 +148,13 @@ def test_run_image_transport_flag_reaches_the_runner(monkeypatch: pytest.MonkeyP
         return {}
 
     monkeypatch.setattr(run_cli, "run_scenario", fake_run)
-    argv = ["car", "--image-transport", "compressedDepth.format=rvl", "compressed.jpeg_quality=50"]
+    argv = [
+        "--image-transport",
+        "compressedDepth.format=rvl",
+        "--image-transport",
+        "compressed.jpeg_quality=50",
+        "car",
+    ]
     run_cli._run(parser.parse_args(argv), interrupt=None)  # type: ignore[arg-type]
     assert seen["record_images"] is True  # implied
     assert seen["image_transport"] == ImageCompression(jpeg_quality=50, depth_format="rvl")

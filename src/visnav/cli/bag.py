@@ -57,11 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--image-transport",
-        nargs="+",
-        action="extend",
+        action="append",
         default=None,
         metavar="NAME=VALUE",
-        help="image_transport plugin parameters for --compress-images (which it implies): "
+        help="an image_transport plugin parameter for --compress-images, which it implies "
+        "(repeat the flag for several): "
         "compressed.jpeg_quality, compressed.png_level, compressedDepth.format (png, rvl), "
         "compressedDepth.png_level, compressedDepth.depth_max, "
         "compressedDepth.depth_quantization",

@@ -48,11 +48,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--image-transport",
-        nargs="+",
-        action="extend",
+        action="append",
         default=None,
         metavar="NAME=VALUE",
-        help="image_transport plugin parameters of the recorded images: "
+        help="an image_transport plugin parameter of the recorded images (repeat the flag "
+        "for several): "
         "compressed.jpeg_quality (80), compressed.png_level (9), compressedDepth.format "
         "(png or rvl), compressedDepth.png_level (1), compressedDepth.depth_max (10), "
         "compressedDepth.depth_quantization (100); implies --record-images",
