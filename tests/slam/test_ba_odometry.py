@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import numpy as np
 import pytest
@@ -137,6 +138,18 @@ def test_compiled_odometry_factors_match_gtsam(short_sequence: Sequence) -> None
     assert moved > 1e-5
 
 
+def _gtsam_camera_1(gtsam: Any, start: np.ndarray, zs: list[np.ndarray], models: list[Any]) -> Any:
+    """Camera 1's pose (T_wc) from gtsam: camera 0 fixed, one BetweenFactorPose3 per measurement."""
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    values.insert(0, gtsam.Pose3(np.eye(4)))
+    values.insert(1, gtsam.Pose3(start))
+    graph.add(gtsam.NonlinearEqualityPose3(0, gtsam.Pose3(np.eye(4))))
+    for z, model in zip(zs, models, strict=True):
+        graph.add(gtsam.BetweenFactorPose3(0, 1, gtsam.Pose3(z), model))
+    result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
+    return result.atPose3(1).matrix()
+
+
 def test_per_axis_sigmas_mean_the_same_axes_in_both_solvers() -> None:
     """Two disagreeing measurements of one motion, each trusted on other axes.
 
@@ -158,15 +171,10 @@ def test_per_axis_sigmas_mean_the_same_axes_in_both_solvers() -> None:
         np.array([True, False]), 30, np.zeros(2, dtype=np.int64), np.ones(2, dtype=np.int64),
         np.stack([inverse(z1), inverse(z2)]), np.stack([np.diag(s1**-2), np.diag(s2**-2)]),
     )  # fmt: skip
-    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-    values.insert(0, gtsam.Pose3(np.eye(4)))
-    values.insert(1, gtsam.Pose3(base))
-    graph.add(gtsam.NonlinearEqualityPose3(0, gtsam.Pose3(np.eye(4))))
-    for z, sig in ((z1, s1), (z2, s2)):
-        model = gtsam.noiseModel.Diagonal.Sigmas(np.concatenate([sig[3:], sig[:3]]))
-        graph.add(gtsam.BetweenFactorPose3(0, 1, gtsam.Pose3(z), model))
-    result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
-    t_wc_gtsam = result.atPose3(1).matrix()
+    models = [
+        gtsam.noiseModel.Diagonal.Sigmas(np.concatenate([sig[3:], sig[:3]])) for sig in (s1, s2)
+    ]
+    t_wc_gtsam = _gtsam_camera_1(gtsam, base, [z1, z2], models)
     t_wc_compiled = inverse(out[1])
     np.testing.assert_allclose(t_wc_compiled[:3, 3], t_wc_gtsam[:3, 3], atol=2e-4)
     np.testing.assert_allclose(t_wc_compiled[:3, :3], t_wc_gtsam[:3, :3], atol=2e-4)
@@ -199,16 +207,9 @@ def test_full_information_means_the_same_in_both_solvers() -> None:
         np.array([True, False]), 30, np.zeros(2, dtype=np.int64), np.ones(2, dtype=np.int64),
         np.stack([inverse(z) for z in zs]), np.stack(infos),
     )  # fmt: skip
-    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-    values.insert(0, gtsam.Pose3(np.eye(4)))
-    values.insert(1, gtsam.Pose3(base))
-    graph.add(gtsam.NonlinearEqualityPose3(0, gtsam.Pose3(np.eye(4))))
     swap = np.r_[3:6, 0:3]
-    for z, info in zip(zs, infos, strict=True):
-        model = gtsam.noiseModel.Gaussian.Information(info[np.ix_(swap, swap)])
-        graph.add(gtsam.BetweenFactorPose3(0, 1, gtsam.Pose3(z), model))
-    result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
-    t_wc_gtsam = result.atPose3(1).matrix()
+    models = [gtsam.noiseModel.Gaussian.Information(i[np.ix_(swap, swap)]) for i in infos]
+    t_wc_gtsam = _gtsam_camera_1(gtsam, base, zs, models)
     t_wc_compiled = inverse(out[1])
     np.testing.assert_allclose(t_wc_compiled[:3, 3], t_wc_gtsam[:3, 3], atol=2e-4)
     np.testing.assert_allclose(t_wc_compiled[:3, :3], t_wc_gtsam[:3, :3], atol=2e-4)
