@@ -34,7 +34,7 @@ def create_points(
         kf: the keyframe whose keypoints are back-projected.
         close_depth: None: every keypoint with depth. Else ORB-SLAM2's rule for a new
             keyframe: keypoints are taken nearest first, and past ``close_depth`` only
-            while fewer than ``min_points`` keypoints (with a map point already or a new
+            until more than ``min_points`` keypoints (with a map point already or a new
             one) have been counted. A far depth is poor (its error grows with the square
             of the range, 4 cm at 5 m for a Kinect-like sensor), and points made from it
             pull the next poses off where only far points are in view.
