@@ -82,6 +82,10 @@ ADDED = {
         "localization",  # session 9: SLAM in localisation mode in database_path
         "global_ba_after_loop",  # session 9: SlamConfig's, for the car's real time
         "global_ba_delay",  # session 10: a loop's global BA in a helper process
+        # a diff drive's odometry prior, tight sideways; ORB-SLAM2's far-point rule
+        "odometry_model",
+        "odometry_sigma_t_lateral",
+        "far_point_limit",
     },
     # issue 17 item 3: bumper_states, lock-step launches; SLAM in the loop's odometry check
     "sim": {
